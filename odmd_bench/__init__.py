@@ -1,0 +1,41 @@
+"""odmd-bench: the ODMD benchmark (Griffin and Corso, CVPR 2021) as a package.
+
+Importing the package loads numpy and h5py only; torch is needed by DBox alone.
+
+>>> import odmd_bench
+>>> batch = odmd_bench.generate(8, preset="odmd", perturbation="both", rng=0)
+>>> batch.boxes.shape
+(8, 10, 4)
+"""
+
+from odmd_bench.config import PRESETS, CameraConfig, GeneratorConfig
+from odmd_bench.errors import (
+    ConfigError,
+    DataError,
+    ImportRefused,
+    OdmdError,
+    UsageError,
+    ValidationError,
+)
+from odmd_bench.examples import Examples, fill_missing, nearest_detected_index
+from odmd_bench.generate import GENERATOR_VERSION, generate
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "GENERATOR_VERSION",
+    "PRESETS",
+    "CameraConfig",
+    "ConfigError",
+    "DataError",
+    "Examples",
+    "GeneratorConfig",
+    "ImportRefused",
+    "OdmdError",
+    "UsageError",
+    "ValidationError",
+    "__version__",
+    "fill_missing",
+    "generate",
+    "nearest_detected_index",
+]

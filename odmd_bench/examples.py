@@ -1,0 +1,169 @@
+"""The in-memory form of a set of examples, and the shared missing-detection rule."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from odmd_bench.errors import DataError
+
+#: Arrays every set has, with their dtype and the shape after the example axis.
+CORE_ARRAYS: dict[str, str] = {
+    "boxes": "float64",
+    "detected": "bool",
+    "camera": "float64",
+    "depth": "float64",
+}
+
+
+@dataclass(frozen=True, eq=False)
+class Examples:
+    """``N`` examples of ``n_obs`` observations each.
+
+    Attributes:
+        boxes: (N, n_obs, 4) float64, ``x, y, w, h`` divided by the image width (x, w)
+            or height (y, h). Where ``detected`` is False the numbers are whatever the
+            source stored (0 for the original release) and carry no information.
+        detected: (N, n_obs) bool, False where the detector found nothing.
+        camera: (N, n_obs, 3) float64, camera position relative to the last
+            observation in metres (camera axes); the last row is zero.
+        depth: (N,) float64, depth Z_n of the object at the last observation, metres.
+        observation_depth: (N, n_obs) float64 or None, depth at each observation
+            (NaN where unknown).
+        extras: further per-example arrays the source knew (for generated sets:
+            ``positions`` (N, n_obs, 3), ``size`` (N, 2), ``camera_clean``
+            (N, n_obs, 3), ``replaced`` (N, n_obs)).
+        attrs: metadata: ``benchmark``, ``split``, ``set``, ``content_sha256`` and,
+            where known, the intrinsics ``fx``, ``fy``, ``cx``, ``cy`` (pixels) and
+            ``image_width``, ``image_height``.
+    """
+
+    boxes: np.ndarray
+    detected: np.ndarray
+    camera: np.ndarray
+    depth: np.ndarray
+    observation_depth: np.ndarray | None = None
+    extras: dict[str, np.ndarray] = field(default_factory=dict)
+    attrs: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        problems = []
+        if self.boxes.ndim != 3 or self.boxes.shape[2] != 4:
+            problems.append(f"boxes must be (N, n_obs, 4), got {self.boxes.shape}")
+        else:
+            n, n_obs = self.boxes.shape[:2]
+            expect = {
+                "detected": (n, n_obs),
+                "camera": (n, n_obs, 3),
+                "depth": (n,),
+            }
+            for name, shape in expect.items():
+                got = getattr(self, name).shape
+                if got != shape:
+                    problems.append(f"{name} must be {shape}, got {got}")
+            if self.observation_depth is not None and self.observation_depth.shape != (n, n_obs):
+                problems.append(
+                    f"observation_depth must be {(n, n_obs)}, got {self.observation_depth.shape}"
+                )
+        if problems:
+            raise DataError("inconsistent example arrays", problems)
+
+    def __len__(self) -> int:
+        return int(self.boxes.shape[0])
+
+    @property
+    def n_obs(self) -> int:
+        return int(self.boxes.shape[1])
+
+    def intrinsics(self) -> tuple[float, float, float, float, float, float]:
+        """``(fx, fy, cx, cy, image_width, image_height)`` in pixels.
+
+        Raises :class:`DataError` naming the set when it does not carry them (the
+        original robot and ODMS files, for instance, say nothing about the camera).
+        """
+        keys = ("fx", "fy", "cx", "cy", "image_width", "image_height")
+        missing = [k for k in keys if self.attrs.get(k) is None]
+        if missing:
+            where = "/".join(
+                str(self.attrs[k]) for k in ("benchmark", "split", "set") if k in self.attrs
+            )
+            raise DataError(
+                f"set {where or '(unnamed)'} carries no camera intrinsics "
+                f"(missing: {', '.join(missing)}); this method needs a calibrated camera"
+            )
+        return tuple(float(self.attrs[k]) for k in keys)  # type: ignore[return-value]
+
+    def subset(self, index: np.ndarray | slice) -> Examples:
+        """The examples selected by ``index`` (a new object; arrays are copies)."""
+        return Examples(
+            boxes=self.boxes[index].copy(),
+            detected=self.detected[index].copy(),
+            camera=self.camera[index].copy(),
+            depth=self.depth[index].copy(),
+            observation_depth=None
+            if self.observation_depth is None
+            else self.observation_depth[index].copy(),
+            extras={k: v[index].copy() for k, v in self.extras.items()},
+            attrs=dict(self.attrs),
+        )
+
+
+def nearest_detected_index(detected: np.ndarray, use: np.ndarray | None = None) -> np.ndarray:
+    """For each observation, the index of the nearest observation with a detection.
+
+    Args:
+        detected: (N, n_obs) bool.
+        use: optional (n_obs,) bool or index array: only these observations are
+            considered as sources and targets (e.g. first and last only).
+
+    Returns:
+        (N, n_obs) int: the source index for each observation (itself where detected;
+        the earlier of two equally near otherwise). Where an example has no detection
+        among the used observations, each observation maps to itself.
+    """
+    detected = np.asarray(detected, dtype=bool)
+    n_obs = detected.shape[1]
+    idx = np.arange(n_obs)
+    mask = np.ones(n_obs, dtype=bool)
+    if use is not None:
+        mask = np.zeros(n_obs, dtype=bool)
+        mask[np.asarray(use)] = True
+    # Cost of taking target t from source s: 2|t - s| plus 1 if s is later, so that
+    # the earlier observation wins a tie.
+    cost = 2 * np.abs(idx[:, None] - idx[None, :]) + (idx[None, :] > idx[:, None])
+    big = 4 * n_obs + 2
+    cost_all = np.where((detected & mask[None, :])[:, None, :], cost[None], big)
+    src = np.argmin(cost_all, axis=2)
+    none = ~(detected & mask[None, :]).any(axis=1)
+    src[none] = idx
+    return src
+
+
+def fill_missing(
+    boxes: np.ndarray, detected: np.ndarray, use: np.ndarray | None = None
+) -> np.ndarray:
+    """Replace every missing box by the box of the nearest observation that has one.
+
+    The rule of the paper and of every method here: among the observations a method
+    uses (``use``, default all), a missing box takes the box of the nearest detected
+    observation, the earlier one on a tie. Examples with no detection at all are
+    returned unchanged (callers apply their own documented fallback).
+
+    Args:
+        boxes: (N, n_obs, 4).
+        detected: (N, n_obs) bool.
+        use: optional observations to consider (see :func:`nearest_detected_index`).
+
+    Returns:
+        (N, n_obs, 4) new array.
+
+    Example:
+        >>> import numpy as np
+        >>> b = np.arange(12, dtype=float).reshape(1, 3, 4)
+        >>> fill_missing(b, np.array([[True, False, True]]))[0, 1].tolist()
+        [0.0, 1.0, 2.0, 3.0]
+    """
+    src = nearest_detected_index(detected, use)
+    return np.take_along_axis(np.asarray(boxes), src[:, :, None], axis=1)

@@ -1,0 +1,182 @@
+"""The versioned ODMD generator (paper section 3.3 and supplementary material).
+
+Generator version 1. Everything random comes from the ``numpy.random.Generator``
+passed in, in a fixed order, so a set is a pure function of
+(generator version, config, perturbation, seed). Any change that alters a generated
+number must bump :data:`GENERATOR_VERSION` and keep version 1 reproducible.
+
+Order of draws for ``N`` examples of ``n`` observations (version 1):
+
+1. one uniform block ``U`` of shape (N, 12 + 3 (n - 2)), float64, columns:
+   total move magnitude (3), move sign (3), object W and H (2), Z1 (1), X1 and Y1
+   (2), reversal (1), intermediate positions ((n - 2) x 3, row-major);
+2. if camera noise is on: standard normals (N, n - 1, 3);
+3. if box noise is on: standard normals (N, n, 4);
+4. if replacement is on: uniforms (N,) (replace or not), integers (N,) in [0, n)
+   (which observation) and integers (N,) in [1, N) (donor offset; the donor is
+   example ``(i + offset) mod N``). With N = 1 there is no other example and
+   nothing is replaced.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from odmd_bench.config import GeneratorConfig, check_perturbation, get_preset
+from odmd_bench.examples import Examples
+
+GENERATOR_VERSION = 1
+
+
+def as_rng(rng: int | np.random.Generator | None) -> np.random.Generator:
+    """A ``numpy.random.Generator`` from a seed (PCG64) or the generator itself."""
+    if isinstance(rng, np.random.Generator):
+        return rng
+    if rng is None or isinstance(rng, bool) or not isinstance(rng, int | np.integer) or rng < 0:
+        from odmd_bench.errors import UsageError
+
+        raise UsageError(f"rng must be a non-negative integer seed or a numpy Generator, got {rng!r}")
+    return np.random.default_rng(int(rng))
+
+
+def generate(
+    n: int,
+    preset: str | GeneratorConfig = "odmd",
+    perturbation: str = "normal",
+    rng: int | np.random.Generator = 0,
+) -> Examples:
+    """``n`` fresh examples from generator version 1.
+
+    Args:
+        n: number of examples (>= 1).
+        preset: ``"odmd"``, ``"odms"`` or a :class:`GeneratorConfig`.
+        perturbation: ``"normal"`` (none), ``"camera"`` (camera-position noise),
+            ``"object"`` (box noise and box replacement) or ``"both"``.
+        rng: a seed or a ``numpy.random.Generator`` (advanced in place).
+
+    Returns:
+        :class:`Examples` with ``boxes`` (n, n_obs, 4), ``detected`` all True,
+        ``camera`` (n, n_obs, 3), ``depth`` (n,), ``observation_depth`` (n, n_obs),
+        and extras ``positions`` (n, n_obs, 3), ``size`` (n, 2), ``camera_clean``
+        (n, n_obs, 3) and ``replaced`` (n, n_obs) bool.
+
+    Example:
+        >>> ex = generate(4, rng=0)
+        >>> ex.boxes.shape, ex.camera[:, -1].tolist() == [[0.0, 0.0, 0.0]] * 4
+        ((4, 10, 4), True)
+    """
+    from odmd_bench.errors import UsageError
+
+    if isinstance(n, bool) or not isinstance(n, int | np.integer) or n < 1:
+        raise UsageError(f"n must be a positive integer, got {n!r}")
+    config = get_preset(preset)
+    check_perturbation(perturbation)
+    gen = as_rng(rng)
+    arrays = _generate_arrays(int(n), config, perturbation, gen)
+    cam = config.camera
+    attrs = {
+        "generator_version": GENERATOR_VERSION,
+        "perturbation": perturbation,
+        "config": config.to_json(),
+        "fx": cam.fx,
+        "fy": cam.fy,
+        "cx": cam.cx,
+        "cy": cam.cy,
+        "image_width": cam.image_width,
+        "image_height": cam.image_height,
+    }
+    return Examples(
+        boxes=arrays["boxes"],
+        detected=np.ones(arrays["boxes"].shape[:2], dtype=bool),
+        camera=arrays["camera"],
+        depth=arrays["depth"],
+        observation_depth=arrays["observation_depth"],
+        extras={k: arrays[k] for k in ("positions", "size", "camera_clean", "replaced")},
+        attrs=attrs,
+    )
+
+
+def _generate_arrays(
+    n: int, config: GeneratorConfig, perturbation: str, rng: np.random.Generator
+) -> dict[str, np.ndarray]:
+    n_obs = config.n_obs
+    cam = config.camera
+    u = rng.random((n, 12 + 3 * (n_obs - 2)))
+
+    # Total camera move p_n - p_1, uniform magnitude per axis with a random sign.
+    move_min = np.asarray(config.move_min)
+    move_max = np.asarray(config.move_max)
+    sign = np.where(u[:, 3:6] < 0.5, -1.0, 1.0)
+    delta = (move_min + u[:, 0:3] * (move_max - move_min)) * sign  # (n, 3)
+
+    s_lo, s_hi = config.object_size
+    size = s_lo + u[:, 6:8] * (s_hi - s_lo)  # W, H
+    z_lo, z_hi = config.initial_depth
+    z1 = z_lo + u[:, 8] * (z_hi - z_lo)
+
+    # X1, Y1 within the view bounds for Z1 (supplementary, eq. X1min).
+    half = s_hi / 2
+    room = z1 - move_max[2]
+    x_lo = (cam.cx / cam.fx) * -room + move_max[0] + half
+    x_hi = ((cam.image_width - cam.cx) / cam.fx) * room - move_max[0] - half
+    y_lo = (cam.cy / cam.fy) * -room + move_max[1] + half
+    y_hi = ((cam.image_height - cam.cy) / cam.fy) * room - move_max[1] - half
+    x1 = x_lo + u[:, 9] * (x_hi - x_lo)
+    y1 = y_lo + u[:, 10] * (y_hi - y_lo)
+    reverse = u[:, 11] < config.reverse_prob
+
+    # Camera positions with p_n = 0 and p_1 = -delta; intermediate ones uniform
+    # between the ends and sorted so that the motion is monotonic on every axis.
+    frac = np.empty((n, n_obs, 3))
+    frac[:, 0] = 0.0
+    frac[:, -1] = 1.0
+    frac[:, 1:-1] = np.sort(u[:, 12:].reshape(n, n_obs - 2, 3), axis=1)
+    p = (frac - 1.0) * delta[:, None, :]  # p_1 + frac * (p_n - p_1)
+
+    # Object in the camera frame at each position: P_i = P_1 - (p_i - p_1).
+    p1 = np.stack([x1, y1, z1], axis=1)
+    positions = p1[:, None, :] - (p - p[:, :1, :])
+
+    # Reverse the whole sequence with probability reverse_prob, then make camera
+    # positions relative to the (new) last observation.
+    positions = np.where(reverse[:, None, None], positions[:, ::-1], positions)
+    p = np.where(reverse[:, None, None], p[:, ::-1], p)
+    camera = p - p[:, -1:, :]
+
+    z = positions[:, :, 2]
+    fxn = cam.fx / cam.image_width
+    fyn = cam.fy / cam.image_height
+    boxes = np.empty((n, n_obs, 4))
+    boxes[:, :, 0] = (cam.fx * positions[:, :, 0] / z + cam.cx) / cam.image_width
+    boxes[:, :, 1] = (cam.fy * positions[:, :, 1] / z + cam.cy) / cam.image_height
+    boxes[:, :, 2] = fxn * size[:, 0:1] / z
+    boxes[:, :, 3] = fyn * size[:, 1:2] / z
+
+    camera_clean = camera
+    if perturbation in ("camera", "both") and config.camera_sigma > 0:
+        noise = rng.standard_normal((n, n_obs - 1, 3))
+        camera = camera.copy()
+        camera[:, :-1] += config.camera_sigma * noise
+
+    replaced = np.zeros((n, n_obs), dtype=bool)
+    if perturbation in ("object", "both"):
+        if config.box_sigma > 0:
+            boxes += config.box_sigma * rng.standard_normal((n, n_obs, 4))
+        if config.replace_prob > 0 and n > 1:
+            hit = rng.random(n) < config.replace_prob
+            obs = rng.integers(0, n_obs, n)
+            donor = (np.arange(n) + rng.integers(1, n, n)) % n
+            rows = np.flatnonzero(hit)
+            boxes[rows, obs[rows]] = boxes[donor[rows], obs[rows]]
+            replaced[rows, obs[rows]] = True
+
+    return {
+        "boxes": boxes,
+        "camera": camera,
+        "depth": z[:, -1].copy(),
+        "observation_depth": z.copy(),
+        "positions": positions,
+        "size": size,
+        "camera_clean": camera_clean,
+        "replaced": replaced,
+    }
