@@ -9,6 +9,7 @@ Importing the package loads numpy and h5py only; torch is needed by DBox alone.
 """
 
 from odmd_bench.config import PRESETS, CameraConfig, GeneratorConfig
+from odmd_bench.data import ensure_generated, load, load_split
 from odmd_bench.errors import (
     ConfigError,
     DataError,
@@ -35,7 +36,10 @@ __all__ = [
     "UsageError",
     "ValidationError",
     "__version__",
+    "ensure_generated",
     "fill_missing",
     "generate",
+    "load",
+    "load_split",
     "nearest_detected_index",
 ]

@@ -1,0 +1,35 @@
+"""The pinned manifests in ``splits/`` (installed as ``odmd_bench.splits``)."""
+
+from __future__ import annotations
+
+import json
+from functools import lru_cache
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+from odmd_bench.errors import DataError
+
+
+def splits_dir() -> Path:
+    """The folder holding the manifests and the committed robot sets."""
+    return Path(str(resources.files("odmd_bench.splits")))
+
+
+@lru_cache(maxsize=None)
+def read_manifest(name: str) -> dict[str, Any]:
+    """The JSON manifest ``splits/<name>.json``."""
+    path = splits_dir() / f"{name}.json"
+    try:
+        data: dict[str, Any] = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise DataError(f"no pinned manifest {path}") from None
+    except json.JSONDecodeError as e:
+        raise DataError(f"pinned manifest {path} is not valid JSON: {e}") from None
+    return data
+
+
+def known_originals() -> dict[str, dict[str, Any]]:
+    """``{sha256: entry}`` for every file of the original release (``splits/odmd-original.json``)."""
+    files = read_manifest("odmd-original")["files"]
+    return {e["sha256"]: {**e, "path": p} for p, e in files.items()}

@@ -1,0 +1,60 @@
+"""Shared fixtures.
+
+Tests that need the original release (``../shared/odmd-original``) skip when it is
+missing on a developer's machine, and fail loudly when ``CI`` is set: CI has the files,
+so their absence there is a broken set-up, never a reason to pass.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+ORIGINAL = Path(__file__).resolve().parents[2] / "shared" / "odmd-original"
+
+
+def original_dir() -> Path:
+    """The original release's folder, or skip (outside CI) / fail (in CI)."""
+    override = os.environ.get("ODMD_ORIGINAL")
+    path = Path(override) if override else ORIGINAL
+    if not (path / "odmd").is_dir():
+        message = f"the original ODMD release is not at {path} (set ODMD_ORIGINAL)"
+        if os.environ.get("CI"):
+            pytest.fail(message + "; CI must have it", pytrace=False)
+        pytest.skip(message)
+    return path
+
+
+@pytest.fixture(scope="session")
+def original_release() -> Path:
+    return original_dir()
+
+
+@pytest.fixture(scope="session")
+def paper_data_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A data folder holding the imported ``odmd-paper`` and ``odms-detection`` benchmarks."""
+    from odmd_bench.importer import import_release
+
+    src = original_dir()
+    data = tmp_path_factory.mktemp("paper-data")
+    import_release(src, data)
+    return data
+
+
+@pytest.fixture(scope="session")
+def v1_data_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A data folder holding the generated ``odmd-v1`` val and test files."""
+    from odmd_bench.data import ensure_generated
+
+    data = tmp_path_factory.mktemp("v1-data")
+    ensure_generated("odmd-v1", ("val", "test"), data)
+    return data
+
+
+@pytest.fixture(autouse=True)
+def _isolated_data_dir(tmp_path_factory: pytest.TempPathFactory, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Never let a test read or write the user's real data folder by accident."""
+    if "ODMD_BENCH_DATA" not in os.environ:
+        monkeypatch.setenv("ODMD_BENCH_DATA", str(tmp_path_factory.getbasetemp() / "default-data"))
