@@ -42,6 +42,14 @@ class _Group(click.Group):
 @click.version_option(__version__, prog_name="odmd-bench")
 def cli() -> None:
     """odmd-bench: data, evaluation and baselines for ODMD (Griffin and Corso, CVPR 2021)."""
+    import logging
+
+    handler = logging.StreamHandler()
+    handler.setFormatter(logging.Formatter("%(message)s"))
+    logger = logging.getLogger("odmd_bench")
+    if not logger.handlers:
+        logger.addHandler(handler)
+    logger.setLevel(logging.INFO)
 
 
 def _register() -> None:

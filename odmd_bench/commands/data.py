@@ -2,6 +2,96 @@
 
 from __future__ import annotations
 
+import json
+from pathlib import Path
+
 import click
 
-COMMANDS: list[click.Command] = []
+from odmd_bench.benchmarks import BENCHMARKS, DATA_DIR_ENV, SPLITS, resolve_data_dir
+
+data_dir_option = click.option(
+    "--data-dir",
+    type=click.Path(file_okay=False, path_type=Path),
+    default=None,
+    help=f"Data folder (default: ${DATA_DIR_ENV}, else ~/.local/share/odmd-bench).",
+)
+
+
+@click.command()
+@click.option(
+    "--benchmark",
+    default="odmd-v1",
+    show_default=True,
+    type=click.Choice([b for b, v in BENCHMARKS.items() if v.generated]),
+    help="Generated benchmark to write.",
+)
+@click.option("--split", type=click.Choice(SPLITS), default=None, help="Only this split (default: both).")
+@click.option("--out", "--data-dir", "data_dir", type=click.Path(file_okay=False, path_type=Path), default=None,
+              help=f"Data folder to write into (default: ${DATA_DIR_ENV}, else ~/.local/share/odmd-bench).")
+@click.option("--force", is_flag=True, help="Regenerate even files that are already right.")
+def generate(benchmark: str, split: str | None, data_dir: Path | None, force: bool) -> None:
+    """Write the val and test files of a generated benchmark, verified against splits/."""
+    from odmd_bench.data import ensure_generated
+
+    splits = [split] if split else list(SPLITS)
+    result = ensure_generated(benchmark, splits, data_dir, force=force, progress=lambda m: click.echo(m, err=True))
+    for s, info in result.items():
+        state = "reused" if info["reused"] else "written"
+        sets = ", ".join(f"{k} {v[:12]}" for k, v in info["sets"].items())
+        click.echo(f"{benchmark} {s}: {info['path']} ({state}; verified: {sets})")
+
+
+@click.command(name="import")
+@click.argument("source", type=click.Path(path_type=Path))
+@click.option(
+    "--benchmark",
+    type=click.Choice([b for b, v in BENCHMARKS.items() if not v.generated]),
+    default=None,
+    help="Import only the files of this benchmark (default: every known file found).",
+)
+@data_dir_option
+@click.option("--allow-unknown", is_flag=True,
+              help="Also import files whose SHA-256 is not one of the pinned originals (not comparable with the paper).")
+def import_(source: Path, benchmark: str | None, data_dir: Path | None, allow_unknown: bool) -> None:
+    """Convert original ODMD / ODMS-detection .pk files (a file or a folder) into HDF5."""
+    from odmd_bench.benchmarks import set_file
+    from odmd_bench.importer import import_release
+
+    written = import_release(source, data_dir, benchmark=benchmark, allow_unknown=allow_unknown)
+    for (bench, split), sets in written.items():
+        click.echo(f"{bench} {split}: {set_file(bench, split, data_dir)} ({', '.join(sets)})")
+
+
+@click.command()
+@click.argument("file", type=click.Path(path_type=Path))
+@click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
+def info(file: Path, as_json: bool) -> None:
+    """Show what an odmd-bench HDF5 file holds."""
+    from odmd_bench.io import file_summary
+
+    summary = file_summary(file)
+    if as_json:
+        click.echo(json.dumps(summary, indent=2, default=str))
+        return
+    click.echo(f"{summary['path']}")
+    for k, v in summary["attrs"].items():
+        click.echo(f"  {k}: {v}")
+    for name, s in summary["sets"].items():
+        a = s["attrs"]
+        click.echo(f"set {name}: {a.get('n')} examples x {a.get('n_obs')} observations")
+        for k in sorted(a):
+            if k not in ("n", "n_obs", "config"):
+                click.echo(f"  {k}: {a[k]}")
+        if "config" in a:
+            click.echo(f"  config: {a['config']}")
+        for arr, (dtype, shape) in s["arrays"].items():
+            click.echo(f"  array {arr}: {dtype} {tuple(shape)}")
+
+
+@click.command(name="data-dir")
+def data_dir_cmd() -> None:
+    """Print the data folder in use."""
+    click.echo(str(resolve_data_dir(None)))
+
+
+COMMANDS: list[click.Command] = [generate, import_, info, data_dir_cmd]
