@@ -53,9 +53,9 @@ def cli() -> None:
 
 
 def _register() -> None:
-    from odmd_bench.commands import data
+    from odmd_bench.commands import baseline, data
 
-    for module in (data,):
+    for module in (data, baseline):
         for command in module.COMMANDS:
             cli.add_command(command)
 
