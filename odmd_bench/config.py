@@ -51,9 +51,7 @@ class CameraConfig:
             if not 0 < self.cx < self.image_width:
                 problems.append(f"camera.cx: must lie inside (0, {self.image_width}), got {self.cx}")
             if not 0 < self.cy < self.image_height:
-                problems.append(
-                    f"camera.cy: must lie inside (0, {self.image_height}), got {self.cy}"
-                )
+                problems.append(f"camera.cy: must lie inside (0, {self.image_height}), got {self.cy}")
         if problems:
             raise ConfigError("invalid camera configuration", problems)
 

@@ -47,7 +47,9 @@ def build_set(benchmark: str, split: str, set_name: str) -> Examples:
     elif entry["kind"] == "file":
         ex = read_set(splits_dir() / entry["file"], set_name)
     else:
-        raise DataError(f"manifest entry for {benchmark} {split} {set_name} has unknown kind {entry['kind']!r}")
+        raise DataError(
+            f"manifest entry for {benchmark} {split} {set_name} has unknown kind {entry['kind']!r}"
+        )
     ex.attrs.update(benchmark=benchmark, split=split, set=set_name)
     return ex
 

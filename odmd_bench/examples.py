@@ -64,9 +64,7 @@ class Examples:
                 if got != shape:
                     problems.append(f"{name} must be {shape}, got {got}")
             if self.observation_depth is not None and self.observation_depth.shape != (n, n_obs):
-                problems.append(
-                    f"observation_depth must be {(n, n_obs)}, got {self.observation_depth.shape}"
-                )
+                problems.append(f"observation_depth must be {(n, n_obs)}, got {self.observation_depth.shape}")
         if problems:
             raise DataError("inconsistent example arrays", problems)
 
@@ -86,9 +84,7 @@ class Examples:
         keys = ("fx", "fy", "cx", "cy", "image_width", "image_height")
         missing = [k for k in keys if self.attrs.get(k) is None]
         if missing:
-            where = "/".join(
-                str(self.attrs[k]) for k in ("benchmark", "split", "set") if k in self.attrs
-            )
+            where = "/".join(str(self.attrs[k]) for k in ("benchmark", "split", "set") if k in self.attrs)
             raise DataError(
                 f"set {where or '(unnamed)'} carries no camera intrinsics "
                 f"(missing: {', '.join(missing)}); this method needs a calibrated camera"
@@ -141,9 +137,7 @@ def nearest_detected_index(detected: np.ndarray, use: np.ndarray | None = None) 
     return src
 
 
-def fill_missing(
-    boxes: np.ndarray, detected: np.ndarray, use: np.ndarray | None = None
-) -> np.ndarray:
+def fill_missing(boxes: np.ndarray, detected: np.ndarray, use: np.ndarray | None = None) -> np.ndarray:
     """Replace every missing box by the box of the nearest observation that has one.
 
     The rule of the paper and of every method here: among the observations a method

@@ -27,7 +27,7 @@ from odmd_bench.benchmarks import get_benchmark, set_file
 from odmd_bench.config import HSR_GRASP_CAMERA
 from odmd_bench.errors import DataError, ImportRefused
 from odmd_bench.examples import Examples
-from odmd_bench.io import file_sha256, read_set, write_sets
+from odmd_bench.io import read_set, write_sets
 from odmd_bench.manifests import known_originals
 
 log = logging.getLogger("odmd_bench")
@@ -104,7 +104,9 @@ def _array(obj: Any, where: str, shape: tuple[int | None, ...], problems: list[s
     if obj.dtype != np.float64:
         problems.append(f"{where}: expected float64, got {obj.dtype}")
         return None
-    if obj.ndim != len(shape) or any(s is not None and s != g for s, g in zip(shape, obj.shape, strict=False)):
+    if obj.ndim != len(shape) or any(
+        s is not None and s != g for s, g in zip(shape, obj.shape, strict=False)
+    ):
         problems.append(f"{where}: expected shape {shape} (None = any), got {obj.shape}")
         return None
     return obj
@@ -113,7 +115,11 @@ def _array(obj: Any, where: str, shape: tuple[int | None, ...], problems: list[s
 def convert(obj: Any, origin: str, target: Target) -> Examples:
     """Turn one unpickled original file into :class:`Examples` (numbers copied exactly)."""
     problems: list[str] = []
-    if not isinstance(obj, dict) or not isinstance(obj.get("bb"), dict) or not isinstance(obj.get("bb_3D"), dict):
+    if (
+        not isinstance(obj, dict)
+        or not isinstance(obj.get("bb"), dict)
+        or not isinstance(obj.get("bb_3D"), dict)
+    ):
         raise ImportRefused(f"{origin}: expected a dict with 'bb' and 'bb_3D' dicts (the ODMD layout)")
     bb, bb3 = obj["bb"], obj["bb_3D"]
     bboxes = _array(bb.get("bboxes"), "bb.bboxes", (None, 5, None), problems)
@@ -171,11 +177,22 @@ def convert(obj: Any, origin: str, target: Target) -> Examples:
         for key, value in (("fx_norm", cam.fx / cam.image_width), ("fy_norm", cam.fy / cam.image_height)):
             if key in bb and not np.isclose(float(bb[key]), value, rtol=0, atol=1e-12):
                 raise ImportRefused(f"{origin}: {key} = {bb[key]} does not match the HSR camera ({value})")
-        attrs.update(fx=cam.fx, fy=cam.fy, cx=cam.cx, cy=cam.cy, image_width=cam.image_width,
-                     image_height=cam.image_height)
+        attrs.update(
+            fx=cam.fx,
+            fy=cam.fy,
+            cx=cam.cx,
+            cy=cam.cy,
+            image_width=cam.image_width,
+            image_height=cam.image_height,
+        )
     return Examples(
-        boxes=boxes, detected=detected, camera=camera, depth=depth,
-        observation_depth=observation_depth, extras=extras, attrs=attrs,
+        boxes=boxes,
+        detected=detected,
+        camera=camera,
+        depth=depth,
+        observation_depth=observation_depth,
+        extras=extras,
+        attrs=attrs,
     )
 
 

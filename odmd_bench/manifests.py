@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import json
-from functools import lru_cache
+from functools import cache
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -16,7 +16,7 @@ def splits_dir() -> Path:
     return Path(str(resources.files("odmd_bench.splits")))
 
 
-@lru_cache(maxsize=None)
+@cache
 def read_manifest(name: str) -> dict[str, Any]:
     """The JSON manifest ``splits/<name>.json``."""
     path = splits_dir() / f"{name}.json"

@@ -16,9 +16,7 @@ from odmd_bench.io import atomic_write
 COLUMNS = ("split", "set", "index", "depth")
 
 
-def format_predictions(
-    split: str, depths: Mapping[str, np.ndarray], benchmark: str | None = None
-) -> str:
+def format_predictions(split: str, depths: Mapping[str, np.ndarray], benchmark: str | None = None) -> str:
     """The CSV text for ``{set name: (N,) depths}`` of one split.
 
     Depths are written with ``repr`` precision (17 significant digits), so a file read

@@ -26,15 +26,23 @@ data_dir_option = click.option(
     help="Generated benchmark to write.",
 )
 @click.option("--split", type=click.Choice(SPLITS), default=None, help="Only this split (default: both).")
-@click.option("--out", "--data-dir", "data_dir", type=click.Path(file_okay=False, path_type=Path), default=None,
-              help=f"Data folder to write into (default: ${DATA_DIR_ENV}, else ~/.local/share/odmd-bench).")
+@click.option(
+    "--out",
+    "--data-dir",
+    "data_dir",
+    type=click.Path(file_okay=False, path_type=Path),
+    default=None,
+    help=f"Data folder to write into (default: ${DATA_DIR_ENV}, else ~/.local/share/odmd-bench).",
+)
 @click.option("--force", is_flag=True, help="Regenerate even files that are already right.")
 def generate(benchmark: str, split: str | None, data_dir: Path | None, force: bool) -> None:
     """Write the val and test files of a generated benchmark, verified against splits/."""
     from odmd_bench.data import ensure_generated
 
     splits = [split] if split else list(SPLITS)
-    result = ensure_generated(benchmark, splits, data_dir, force=force, progress=lambda m: click.echo(m, err=True))
+    result = ensure_generated(
+        benchmark, splits, data_dir, force=force, progress=lambda m: click.echo(m, err=True)
+    )
     for s, info in result.items():
         state = "reused" if info["reused"] else "written"
         sets = ", ".join(f"{k} {v[:12]}" for k, v in info["sets"].items())
@@ -50,8 +58,11 @@ def generate(benchmark: str, split: str | None, data_dir: Path | None, force: bo
     help="Import only the files of this benchmark (default: every known file found).",
 )
 @data_dir_option
-@click.option("--allow-unknown", is_flag=True,
-              help="Also import files whose SHA-256 is not one of the pinned originals (not comparable with the paper).")
+@click.option(
+    "--allow-unknown",
+    is_flag=True,
+    help="Also import files whose SHA-256 is not one of the pinned originals (not comparable with the paper).",
+)
 def import_(source: Path, benchmark: str | None, data_dir: Path | None, allow_unknown: bool) -> None:
     """Convert original ODMD / ODMS-detection .pk files (a file or a folder) into HDF5."""
     from odmd_bench.benchmarks import set_file
