@@ -364,76 +364,111 @@ def _gauss_newton(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Robust Levenberg-Marquardt on the reprojection residuals, all examples at once.
 
-    Returns ``(theta (N, 5), final robust cost (N,), starting robust cost (N,))``.
+    Unknowns: ``theta`` (N, 5) and camera corrections ``delta`` (N, n_obs, 3) with the
+    prior ``N(0, sigma_camera^2)`` (zero variance at the last observation). Objective
+    per example: ``sum_i m_i rho(r_i^T B_i^-1 r_i) + |delta|^2 / sigma_camera^2``, with
+    ``B_i`` the box-noise variances. Each step solves the joint Gauss-Newton system
+    with ``delta`` eliminated in closed form (Schur complement: a 5 x 5 system whose
+    per-observation covariance ``B_i / w_i + J_delta P J_delta^T`` is inverted by
+    Sherman-Morrison), then recovers ``delta``. Damping acts on ``theta``; a step is
+    kept only where it lowers the objective.
+
+    Returns ``(theta (N, 5), final cost (N,), starting cost (N,))``.
     """
     a, b = ab
-    cz = camera[:, :, 2]
-    n_obs = cz.shape[1]
+    n_obs = camera.shape[1]
     cam_var = np.full(n_obs, params.sigma_camera**2)
     cam_var[-1] = 0.0  # the last position is zero by definition
+    inv_cam_var = np.where(cam_var > 0, 1.0 / np.where(cam_var > 0, cam_var, 1.0), 0.0)
     dcam = np.array([a * a, b * b, 0.0, 0.0])
     ident = np.eye(5)
+    # Box-noise variances from the observed sizes (constant, so the objective is fixed).
+    size = np.abs(g[:, :, [2, 3, 2, 3]])
+    beta = params.sigma_box**2 + (params.rel_box * size) ** 2  # (N, n, 4)
 
-    def evaluate(th: np.ndarray) -> tuple[np.ndarray, ...]:
-        zi = np.maximum(th[:, :1] - cz, params.min_depth)  # (N, n)
-        p = (th[:, None, 1:] + k) / zi[:, :, None]  # predictions (N, n, 4)
+    def predict_at(th: np.ndarray, dl: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        zi = np.maximum(th[:, :1] - camera[:, :, 2] - dl[:, :, 2], params.min_depth)
+        kk = k.copy()
+        kk[:, :, 0] -= a * dl[:, :, 0]
+        kk[:, :, 1] -= b * dl[:, :, 1]
+        p = (th[:, None, 1:] + kk) / zi[:, :, None]
+        return zi, p
+
+    def objective(th: np.ndarray, dl: np.ndarray) -> tuple[np.ndarray, ...]:
+        zi, p = predict_at(th, dl)
         r = (g - p) * coord_on
-        size = np.stack([p[:, :, 2], p[:, :, 3], p[:, :, 2], p[:, :, 3]], axis=2)
-        beta = params.sigma_box**2 + (params.rel_box * size) ** 2
+        s = (r * r / beta).sum(axis=2)
+        prior = ((dl * dl).sum(axis=2) * inv_cam_var).sum(axis=1)
+        cost = (m * _rho(s, params.loss, params.loss_scale)).sum(axis=1) + prior
+        return cost, zi, p, r, s
+
+    delta = np.zeros(camera.shape)
+    cost, zi, p, r, s = objective(theta, delta)
+    cost_start = cost.copy()
+    lam = np.full(theta.shape[0], 1e-4)
+    for _ in range(params.iterations):
+        om = np.maximum(m * _weights(s, params.loss, params.loss_scale), 1e-12)  # (N, n)
         q = cam_var / zi**2  # (N, n)
-        mdiag = beta + q[:, :, None] * dcam  # (N, n, 4)
-        # Sigma = diag(mdiag) + q p p^T on the used coordinates; inverse by Sherman-Morrison.
+        mdiag = beta / om[:, :, None] + q[:, :, None] * dcam  # (N, n, 4)
         pu = p * coord_on
+        # Residual with the current corrections undone (linearised): r + J_delta delta.
+        jd = np.empty_like(r)
+        jd[:, :, 0] = -a * delta[:, :, 0] + p[:, :, 0] * delta[:, :, 2]
+        jd[:, :, 1] = -b * delta[:, :, 1] + p[:, :, 1] * delta[:, :, 2]
+        jd[:, :, 2] = p[:, :, 2] * delta[:, :, 2]
+        jd[:, :, 3] = p[:, :, 3] * delta[:, :, 2]
+        rt = r + jd / zi[:, :, None] * coord_on
+        # Sigma^-1 = diag(1/mdiag) - kappa u u^T, u = p / mdiag (Sherman-Morrison).
         u = pu / mdiag
         pu_u = (pu * u).sum(axis=2)
         kappa = q / (1.0 + q * pu_u)
-        ru = (r * u).sum(axis=2)
-        s = (r * r / mdiag).sum(axis=2) - kappa * ru**2  # r^T Sigma^-1 r
-        return zi, pu, r, mdiag, u, pu_u, kappa, ru, s
-
-    def cost_of(s: np.ndarray, w_mask: np.ndarray) -> np.ndarray:
-        return (w_mask * _rho(s, params.loss, params.loss_scale)).sum(axis=1)
-
-    zi, pu, r, mdiag, u, pu_u, kappa, ru, s = evaluate(theta)
-    cost = cost_of(s, m)
-    cost_start = cost.copy()
-    lam = np.full(theta.shape[0], 1e-3)
-    for _ in range(params.iterations):
-        om = m * _weights(s, params.loss, params.loss_scale) / zi**2  # (N, n)
-        # S = diag(1/mdiag) - kappa u u^T ; S p = u (1 - kappa p.u) ; p^T S p = p.u (1 - kappa p.u)
-        sp = u * (1.0 - kappa * pu_u)[:, :, None]
-        psp = pu_u * (1.0 - kappa * pu_u)
-        sr = r / mdiag * coord_on - (kappa * ru)[:, :, None] * u
+        one_k = 1.0 - kappa * pu_u
+        ru = (rt * u).sum(axis=2)
+        sr = rt / mdiag * coord_on - (kappa * ru)[:, :, None] * u  # Sigma^-1 r~
         psr = (pu * sr).sum(axis=2)
+        sp = u * one_k[:, :, None]  # Sigma^-1 p
+        psp = pu_u * one_k
+        iz2 = 1.0 / zi**2
+        iz = 1.0 / zi
+        # J_theta = (1/Z_i)[-p, I4].
         h = np.empty(theta.shape[:1] + (5, 5))
-        h[:, 0, 0] = (om * psp).sum(axis=1)
-        h[:, 0, 1:] = -np.einsum("no,noc->nc", om, sp)
+        h[:, 0, 0] = (iz2 * psp).sum(axis=1)
+        h[:, 0, 1:] = -np.einsum("no,noc->nc", iz2, sp)
         h[:, 1:, 0] = h[:, 0, 1:]
-        inv_diag = coord_on / mdiag
-        h[:, 1:, 1:] = np.einsum("no,noc,cd->ncd", om, inv_diag, np.eye(4)) - np.einsum(
-            "no,noc,nod->ncd", om * kappa, u, u
+        h[:, 1:, 1:] = np.einsum("no,noc,cd->ncd", iz2, coord_on / mdiag, np.eye(4)) - np.einsum(
+            "no,noc,nod->ncd", iz2 * kappa, u, u
         )
-        # Unused coordinates (scale mode) leave X', Y' free: pin them.
-        h[:, 1:, 1:] += np.diag(1.0 - coord_on)
-        zfac = zi  # J = (1/Z_i)[-p, I]; om already holds 1/Z_i^2, so grad needs a Z_i back
+        h[:, 1:, 1:] += np.diag(1.0 - coord_on)  # unused coordinates: pin X', Y'
         grad = np.empty(theta.shape[:1] + (5,))
-        grad[:, 0] = -(om * zfac * psr).sum(axis=1)
-        grad[:, 1:] = np.einsum("no,noc->nc", om * zfac, sr)
+        grad[:, 0] = -(iz * psr).sum(axis=1)
+        grad[:, 1:] = np.einsum("no,noc->nc", iz, sr)
         damped = h + lam[:, None, None] * (h * ident + 1e-12 * ident)
         step = _solve(damped, grad)
+        # New corrections: eps = P J_delta^T Sigma^-1 (r~ - J_theta step).
+        jstep = (-(p * step[:, None, :1]) + step[:, None, 1:]) * iz[:, :, None] * coord_on
+        v = rt - jstep
+        vu = (v * u).sum(axis=2)
+        sv = v / mdiag * coord_on - (kappa * vu)[:, :, None] * u
+        pz = (p * sv * coord_on).sum(axis=2)
+        new_delta = np.empty_like(delta)
+        new_delta[:, :, 0] = -a * sv[:, :, 0]
+        new_delta[:, :, 1] = -b * sv[:, :, 1]
+        new_delta[:, :, 2] = pz
+        new_delta *= (cam_var * iz)[:, :, None]
         new = theta + step
-        new[:, 0] = np.maximum(new[:, 0], z_low)
-        ev = evaluate(new)
-        new_cost = cost_of(ev[-1], m)
+        zl = np.maximum(z_low, np.max(np.where(m > 0, camera[:, :, 2] + new_delta[:, :, 2], -np.inf), axis=1) + params.min_depth)
+        new[:, 0] = np.maximum(new[:, 0], zl)
+        new_cost, nzi, np_, nr, ns = objective(new, new_delta)
         better = np.isfinite(new_cost) & (new_cost <= cost)
         theta = np.where(better[:, None], new, theta)
+        delta = np.where(better[:, None, None], new_delta, delta)
         cost = np.where(better, new_cost, cost)
         lam = np.where(better, np.maximum(lam * 0.3, 1e-9), lam * 10.0)
-        sel = better[:, None]
-        zi, pu, r, mdiag, u, pu_u, kappa, ru, s = (
-            np.where(sel, e_new, e_old) if e_new.ndim == 2 else np.where(sel[:, :, None], e_new, e_old)
-            for e_new, e_old in zip(ev, (zi, pu, r, mdiag, u, pu_u, kappa, ru, s), strict=True)
-        )
+        b2 = better[:, None]
+        zi = np.where(b2, nzi, zi)
+        s = np.where(b2, ns, s)
+        p = np.where(b2[:, :, None], np_, p)
+        r = np.where(b2[:, :, None], nr, r)
     return theta, cost, cost_start
 
 
