@@ -53,9 +53,9 @@ def cli() -> None:
 
 
 def _register() -> None:
-    from odmd_bench.commands import baseline, data
+    from odmd_bench.commands import baseline, data, evaluate
 
-    for module in (data, baseline):
+    for module in (data, baseline, evaluate):
         for command in module.COMMANDS:
             cli.add_command(command)
 

@@ -1,0 +1,290 @@
+"""Formatting evaluation and comparison results for people and scripts.
+
+Scoring returns data (:mod:`odmd_bench.evaluate`, :mod:`odmd_bench.compare`); this
+module only turns it into text: ``table`` (the layout of the paper's detailed tables:
+one row per set with mean, median, min, max and std of percent error and of absolute
+error, then ``All``), ``json`` (CONTRACT section 5), ``csv`` and ``markdown``. It also
+writes the per-example CSV (:func:`write_per_example`), atomically.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import os
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from odmd_bench.compare import Comparison, PairedDifference
+from odmd_bench.errors import UsageError
+from odmd_bench.evaluate import EvaluationResult
+from odmd_bench.examples import fill_missing
+from odmd_bench.io import atomic_write
+from odmd_bench.metrics import STATS
+
+FORMATS: tuple[str, ...] = ("table", "json", "csv", "markdown")
+
+#: Columns of the per-example CSV, in order.
+PER_EXAMPLE_COLUMNS: tuple[str, ...] = (
+    "set",
+    "index",
+    "prediction",
+    "truth",
+    "percent_error",
+    "absolute_error",
+    "n_detected",
+    "camera_move",
+    "box_w",
+    "box_h",
+    "box_area_mean",
+)
+
+
+def _check_format(fmt: str) -> None:
+    if fmt not in FORMATS:
+        raise UsageError(f"unknown format {fmt!r}; expected one of {', '.join(FORMATS)}")
+
+
+def _pct(stat: str, v: float) -> str:
+    # The paper prints the minimum percent error with 4 decimals, the rest with 2.
+    return f"{v:.4f}" if stat == "min" else f"{v:.2f}"
+
+
+def _header_line(result: EvaluationResult) -> str:
+    prov = result.provenance
+    return (
+        f"{result.benchmark} {result.split}: {prov.get('predictions_file', '')} "
+        f"(sha256 {str(prov.get('predictions_sha256', ''))[:12]}), odmd-bench {prov.get('version', '')}"
+    )
+
+
+def format_table(result: EvaluationResult) -> str:
+    """The paper's layout as fixed-width text.
+
+    Percent error in %, absolute error in metres. ``All`` is the mean of the listed
+    sets' mean percent errors (the paper's "All Sets").
+    """
+    w = 8
+    name_w = max([len("set"), len("All")] + [len(s) for s in result.sets])
+    lines = [_header_line(result), ""]
+    pct_block = "percent error (%)".center(5 * w)
+    abs_block = "absolute error (m)".center(5 * w)
+    lines.append(" " * (name_w + 7) + pct_block + "  " + abs_block)
+    head = f"{'set':<{name_w}} {'n':>6}" + "".join(f"{s:>{w}}" for s in STATS)
+    head += "  " + "".join(f"{s:>{w}}" for s in STATS)
+    lines.append(head)
+    lines.append("-" * len(head))
+    for s, m in result.sets.items():
+        row = f"{s:<{name_w}} {m['n']:>6}"
+        row += "".join(f"{_pct(k, m['percent_error'][k]):>{w}}" for k in STATS)
+        row += "  " + "".join(f"{m['absolute_error'][k]:>{w}.4f}" for k in STATS)
+        lines.append(row)
+    lines.append("-" * len(head))
+    n_all = sum(m["n"] for m in result.sets.values())
+    lines.append(f"{'All':<{name_w}} {n_all:>6}{result.all_percent_error_mean:>{w}.2f}")
+    lines.append("")
+    lines.append(f"All = mean of the mean percent errors of {', '.join(result.sets)}")
+    return "\n".join(lines) + "\n"
+
+
+def format_markdown(result: EvaluationResult) -> str:
+    """A GitHub-flavoured markdown table with the same rows and columns as the table."""
+    cols = ["set", "n"] + [f"% {k}" for k in STATS] + [f"abs {k} (m)" for k in STATS]
+    lines = [
+        f"**{result.benchmark} {result.split}**, percent error (%) and absolute error (m)",
+        "",
+        "| " + " | ".join(cols) + " |",
+        "| --- | " + " | ".join("---:" for _ in cols[1:]) + " |",
+    ]
+    for s, m in result.sets.items():
+        cells = [s, str(m["n"])]
+        cells += [_pct(k, m["percent_error"][k]) for k in STATS]
+        cells += [f"{m['absolute_error'][k]:.4f}" for k in STATS]
+        lines.append("| " + " | ".join(cells) + " |")
+    n_all = sum(m["n"] for m in result.sets.values())
+    cells = ["**All**", str(n_all), f"**{result.all_percent_error_mean:.2f}**"] + [""] * (len(cols) - 3)
+    lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def format_csv(result: EvaluationResult) -> str:
+    """One row per set, then ``All``; numbers at full precision (``repr``)."""
+    buf = io.StringIO()
+    writer = csv.writer(buf, lineterminator="\n")
+    cols = ["benchmark", "split", "set", "n"]
+    cols += [f"percent_error_{k}" for k in STATS] + [f"absolute_error_{k}" for k in STATS]
+    writer.writerow(cols)
+    for s, m in result.sets.items():
+        row: list[Any] = [result.benchmark, result.split, s, m["n"]]
+        row += [repr(m["percent_error"][k]) for k in STATS]
+        row += [repr(m["absolute_error"][k]) for k in STATS]
+        writer.writerow(row)
+    n_all = sum(m["n"] for m in result.sets.values())
+    writer.writerow(
+        [result.benchmark, result.split, "All", n_all, repr(result.all_percent_error_mean)]
+        + [""] * (len(cols) - 5)
+    )
+    return buf.getvalue()
+
+
+def format_json(result: EvaluationResult) -> str:
+    """The JSON object of CONTRACT section 5 (keys ``benchmark``, ``split``, ``sets``,
+    ``all``, ``provenance``, plus ``warnings``)."""
+    return json.dumps(result.to_dict(), indent=2) + "\n"
+
+
+_FORMATTERS: dict[str, Callable[[EvaluationResult], str]] = {
+    "table": format_table,
+    "json": format_json,
+    "csv": format_csv,
+    "markdown": format_markdown,
+}
+
+
+def format_result(result: EvaluationResult, fmt: str = "table") -> str:
+    """``result`` as text in one of :data:`FORMATS`."""
+    _check_format(fmt)
+    return _FORMATTERS[fmt](result)
+
+
+def per_example_rows(result: EvaluationResult) -> dict[str, np.ndarray]:
+    """The per-example columns (:data:`PER_EXAMPLE_COLUMNS`) as arrays, sets in order.
+
+    ``camera_move`` is ``|c_1 - c_n|``, the distance in metres between the first and the
+    last camera position. ``box_w`` and ``box_h`` are the last observation's box width
+    and height (divided by the image width and height), taken from the nearest
+    observation with a detection when the last has none (the shared missing-detection
+    rule; 0 when the example has no detection at all). ``box_area_mean`` is the mean of
+    ``w * h`` over the observations with a detection (0 when there is none).
+    """
+    parts: dict[str, list[np.ndarray]] = {c: [] for c in PER_EXAMPLE_COLUMNS}
+    for s in result.sets:
+        ex = result.examples[s]
+        pred = result.predictions[s]
+        truth = ex.depth
+        n = len(ex)
+        det = ex.detected
+        boxes = fill_missing(ex.boxes, det)
+        n_det = det.sum(axis=1)
+        last = np.where((n_det > 0)[:, None], boxes[:, -1, 2:4], 0.0)
+        area = ex.boxes[:, :, 2] * ex.boxes[:, :, 3]
+        area_mean = np.where(n_det > 0, (area * det).sum(axis=1) / np.maximum(n_det, 1), 0.0)
+        parts["set"].append(np.full(n, s, dtype=object))
+        parts["index"].append(np.arange(n))
+        parts["prediction"].append(pred)
+        parts["truth"].append(truth)
+        parts["absolute_error"].append(np.abs(truth - pred))
+        parts["percent_error"].append(np.abs(truth - pred) / truth * 100.0)
+        parts["n_detected"].append(n_det)
+        parts["camera_move"].append(np.linalg.norm(ex.camera[:, 0, :] - ex.camera[:, -1, :], axis=1))
+        parts["box_w"].append(last[:, 0])
+        parts["box_h"].append(last[:, 1])
+        parts["box_area_mean"].append(area_mean)
+    return {c: np.concatenate(v) if v else np.empty(0) for c, v in parts.items()}
+
+
+def format_per_example(result: EvaluationResult) -> str:
+    """The per-example CSV text (see :func:`per_example_rows`); floats at full precision."""
+    cols = per_example_rows(result)
+    buf = io.StringIO()
+    buf.write(",".join(PER_EXAMPLE_COLUMNS) + "\n")
+    ints = {"index", "n_detected"}
+    as_text = [
+        cols[c].tolist() if c in ints or c == "set" else [repr(float(v)) for v in cols[c]]
+        for c in PER_EXAMPLE_COLUMNS
+    ]
+    for row in zip(*as_text, strict=True):
+        buf.write(",".join(str(v) for v in row) + "\n")
+    return buf.getvalue()
+
+
+def write_per_example(path: str | os.PathLike[str], result: EvaluationResult) -> None:
+    """Write the per-example CSV atomically (no partial file on failure)."""
+    text = format_per_example(result)
+    with atomic_write(path, "w") as fh:
+        fh.write(text)
+
+
+# --- comparisons -----------------------------------------------------------------
+
+
+def _cmp_cells(name: str, d: PairedDifference) -> list[str]:
+    return [
+        name,
+        str(d.n),
+        f"{d.mean_a:.2f}",
+        f"{d.mean_b:.2f}",
+        f"{d.difference:+.2f}",
+        f"[{d.ci_low:+.2f}, {d.ci_high:+.2f}]",
+        f"{d.p_value:.4f}",
+        d.verdict,
+    ]
+
+
+_CMP_COLS = ["set", "n", "A mean %", "B mean %", "A - B", "interval", "p", "verdict"]
+
+
+def _cmp_note(c: Comparison) -> str:
+    return (
+        f"A - B of mean percent error; {c.confidence:.0%} paired bootstrap interval and sign-flip test "
+        f"({c.n_resamples} resamples, seed {c.seed}); negative: A's error is lower"
+    )
+
+
+def format_comparison(c: Comparison, fmt: str = "table") -> str:
+    """A comparison as text in one of :data:`FORMATS`."""
+    _check_format(fmt)
+    rows = [_cmp_cells(s, d) for s, d in c.sets.items()] + [_cmp_cells("All", c.all)]
+    prov = c.provenance
+    files = ""
+    if prov.get("a") and prov.get("b"):
+        files = f"A = {prov['a'].get('predictions_file')}, B = {prov['b'].get('predictions_file')}"
+    if fmt == "json":
+        return json.dumps(c.to_dict(), indent=2) + "\n"
+    if fmt == "csv":
+        buf = io.StringIO()
+        writer = csv.writer(buf, lineterminator="\n")
+        writer.writerow(
+            [
+                "benchmark",
+                "split",
+                "set",
+                "n",
+                "mean_a",
+                "mean_b",
+                "difference",
+                "ci_low",
+                "ci_high",
+                "p_value",
+                "verdict",
+            ]
+        )
+        for s, d in [*c.sets.items(), ("All", c.all)]:
+            writer.writerow(
+                [c.benchmark, c.split, s, d.n]
+                + [repr(v) for v in (d.mean_a, d.mean_b, d.difference, d.ci_low, d.ci_high, d.p_value)]
+                + [d.verdict]
+            )
+        return buf.getvalue()
+    if fmt == "markdown":
+        lines = [f"**{c.benchmark} {c.split}**: {files}", "", "| " + " | ".join(_CMP_COLS) + " |"]
+        lines.append("| --- | " + " | ".join("---:" for _ in _CMP_COLS[1:-1]) + " | --- |")
+        lines += ["| " + " | ".join(r) + " |" for r in rows]
+        lines += ["", _cmp_note(c)]
+        return "\n".join(lines) + "\n"
+    widths = [max(len(_CMP_COLS[i]), *(len(r[i]) for r in rows)) for i in range(len(_CMP_COLS))]
+
+    def fmt_row(cells: list[str]) -> str:
+        out = [f"{cells[0]:<{widths[0]}}"] + [f"{v:>{widths[i]}}" for i, v in enumerate(cells[1:-1], 1)]
+        return "  ".join(out + [cells[-1]])
+
+    lines = [f"{c.benchmark} {c.split}: {files}", "", fmt_row(_CMP_COLS)]
+    lines.append("-" * len(lines[-1]))
+    lines += [fmt_row(r) for r in rows[:-1]]
+    lines.append("-" * len(lines[2]))
+    lines.append(fmt_row(rows[-1]))
+    lines += ["", _cmp_note(c)]
+    return "\n".join(lines) + "\n"
