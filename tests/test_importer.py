@@ -1,0 +1,118 @@
+"""Import of the original release: bit-exact, and refusing hostile or unknown files."""
+
+from __future__ import annotations
+
+import pickle
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import odmd_bench
+from odmd_bench import ImportRefused
+from odmd_bench.importer import import_release, read_original, safe_unpickle
+
+SETS = {"normal": "normal", "perturb_motion": "camera", "perturb_detection": "object", "robot": "robot"}
+
+
+def _raw(path: Path) -> dict:
+    # The test trusts these pinned files enough to read them with the plain unpickler,
+    # so that it compares against an independent reading.
+    with open(path, "rb") as fh:
+        return pickle.load(fh)  # noqa: S301
+
+
+@pytest.mark.parametrize("split", ["val", "test"])
+@pytest.mark.parametrize("stem", sorted(SETS))
+def test_import_is_bit_exact(split, stem, original_release, paper_data_dir) -> None:
+    raw = _raw(original_release / "odmd" / split / f"{split}_{stem}.pk")
+    ex = odmd_bench.load(split, SETS[stem], "odmd-paper", paper_data_dir)
+    bb = raw["bb"]["bboxes"]
+    assert np.array_equal(ex.boxes, bb[:, :4].transpose(2, 0, 1))
+    assert np.array_equal(ex.depth, bb[-1, 4])
+    assert np.array_equal(ex.camera[:, :-1], raw["bb_3D"]["camera_movement"].transpose(2, 0, 1))
+    assert (ex.camera[:, -1] == 0).all()
+    assert np.array_equal(ex.detected, bb[:, 2].T != 0)
+    z = bb[:, 4].T
+    known = z != 0
+    assert np.array_equal(ex.observation_depth[known], z[known])
+    assert np.isnan(ex.observation_depth[~known]).all()
+    if "positions" in raw["bb_3D"]:
+        assert np.array_equal(ex.extras["positions"], raw["bb_3D"]["positions"].transpose(2, 0, 1))
+        assert np.array_equal(ex.extras["size"][:, 0], raw["bb_3D"]["sizes"][0])
+    assert ex.attrs["source_known"] and len(ex.attrs["source_sha256"]) == 64
+    assert ex.intrinsics() == (205.5, 205.5, 320.5, 240.5, 640.0, 480.0)
+
+
+def test_robot_sets_have_missing_detections(paper_data_dir) -> None:
+    ex = odmd_bench.load("test", "robot", "odmd-paper", paper_data_dir)
+    assert (~ex.detected).sum() == 188
+    assert (ex.detected.sum(axis=1) <= 1).sum() == 4
+
+
+def test_odms_detection_sets_import_without_intrinsics(paper_data_dir) -> None:
+    sets = odmd_bench.load_split("val", "odms-detection", paper_data_dir)
+    assert {k: len(v) for k, v in sets.items()} == {
+        "normal": 2000,
+        "perturb": 2000,
+        "robot": 1760,
+        "driving": 500,
+    }
+    assert sets["driving"].attrs["image_width"] == 1280
+    with pytest.raises(odmd_bench.DataError, match="no camera intrinsics"):
+        sets["robot"].intrinsics()
+
+
+class _Boom:
+    def __reduce__(self):
+        import os
+
+        return (os.system, ("touch /tmp/odmd-hostile-pickle-ran",))
+
+
+def test_hostile_pickle_is_refused_and_nothing_runs(tmp_path) -> None:
+    marker = Path("/tmp/odmd-hostile-pickle-ran")
+    marker.unlink(missing_ok=True)
+    evil = pickle.dumps({"bb": {"bboxes": _Boom()}, "bb_3D": {}}, protocol=3)
+    with pytest.raises(ImportRefused, match="posix.system|os.system"):
+        safe_unpickle(evil, "evil.pk")
+    assert not marker.exists()
+    path = tmp_path / "test_normal.pk"
+    path.write_bytes(evil)
+    with pytest.raises(ImportRefused):
+        read_original(path, allow_unknown=True)
+    assert not marker.exists()
+
+
+def test_unknown_or_altered_files_are_refused(original_release, tmp_path) -> None:
+    data = bytearray((original_release / "odmd" / "test" / "test_robot.pk").read_bytes())
+    data[-20] ^= 1  # one flipped bit inside the numbers
+    path = tmp_path / "test_robot.pk"
+    path.write_bytes(bytes(data))
+    with pytest.raises(ImportRefused, match="unknown file"):
+        import_release(path, tmp_path / "data")
+    assert not (tmp_path / "data").exists()
+    # Allowed explicitly, it imports and says it is not a known original.
+    import_release(path, tmp_path / "data", allow_unknown=True)
+    ex = odmd_bench.load("test", "robot", "odmd-paper", tmp_path / "data")
+    assert ex.attrs["source_known"] is False or ex.attrs["source_known"] == 0
+
+
+def test_garbage_and_wrong_layouts_are_refused(tmp_path) -> None:
+    for name, payload in {
+        "test_normal.pk": b"not a pickle at all",
+        "test_camera.pk": pickle.dumps({"bb": {}, "bb_3D": {}}, protocol=3),
+        "val_robot.pk": pickle.dumps([1, 2, 3], protocol=3),
+    }.items():
+        (tmp_path / name).write_bytes(payload)
+    with pytest.raises(ImportRefused) as info:
+        import_release(tmp_path, tmp_path / "data", allow_unknown=True)
+    text = info.value.render()
+    assert "nothing was written" in text and text.count("\n  - ") >= 2
+
+
+def test_reimport_keeps_other_sets(original_release, tmp_path) -> None:
+    import_release(original_release / "odmd" / "test" / "test_normal.pk", tmp_path)
+    import_release(original_release / "odmd" / "test" / "test_robot.pk", tmp_path)
+    sets = odmd_bench.load_split("test", "odmd-paper", tmp_path, sets=["normal", "robot"])
+    assert set(sets) == {"normal", "robot"}
