@@ -72,6 +72,7 @@ from odmd_bench import DataError, Examples, UsageError, fill_missing
 
 Mode = Literal["full", "scale"]
 Missing = Literal["omit", "fill"]
+_DEBUG = False
 LOSSES = ("cauchy", "huber", "soft_l1", "linear")
 MODES = ("full", "scale")
 MISSING = ("omit", "fill")
@@ -223,32 +224,14 @@ def fit(
         ``(depths (N,), counts)`` as :func:`predict_report`.
     """
     n = boxes.shape[0]
-    m = usable.astype(np.float64)
     enough = usable.sum(axis=1) >= 2
-    # Coordinates used: all four, or only w, h.
-    coord_on = np.array([1.0, 1.0, 1.0, 1.0]) if cam_model is not None else np.array([0.0, 0.0, 1.0, 1.0])
-    a, b, u0, v0 = cam_model if cam_model is not None else (0.0, 0.0, 0.0, 0.0)
-
-    # Observations centred on the principal point: g = (x - u0, y - v0, w, h).
-    g = boxes - np.array([u0, v0, 0.0, 0.0])
-    g = np.where(usable[:, :, None], g, 0.0)
-    cz = camera[:, :, 2]
-    # Offsets that the camera's lateral motion adds: x-row target X' - a C_X.
-    k = np.zeros_like(g)
-    k[:, :, 0] = -a * camera[:, :, 0]
-    k[:, :, 1] = -b * camera[:, :, 1]
-
-    z_low = np.max(np.where(usable, cz, -np.inf), axis=1) + params.min_depth
-    z_low = np.where(enough, z_low, params.min_depth)
-
-    z0 = _linear_start(g, k, cz, m, coord_on, z_low, params)
-    theta0 = _offsets_given_z(z0, g, k, cz, m)
-    depth = z0.copy()
+    prob = _Problem.build(boxes, usable, camera, cam_model, params)
+    z0 = _linear_start(prob, params)
+    depth = z0
     failed = np.zeros(n, dtype=bool)
     if params.iterations > 0:
-        theta, cost_end, cost_start = _gauss_newton(theta0, g, k, camera, m, coord_on, z_low, (a, b), params)
-        z = theta[:, 0]
-        ok = np.isfinite(z) & (z >= z_low - 1e-12) & np.isfinite(cost_end) & (cost_end <= cost_start * (1 + 1e-9) + 1e-300)
+        z, cost_end, cost_start = _gauss_newton(prob, z0, params)
+        ok = np.isfinite(z) & (z >= prob.z_low - 1e-12) & np.isfinite(cost_end) & (cost_end <= cost_start)
         failed = enough & ~ok
         depth = np.where(ok, z, z0)
     depth = np.where(enough, depth, 0.0)
@@ -260,19 +243,68 @@ def fit(
     return depth, counts
 
 
-def _offsets_given_z(z: np.ndarray, g: np.ndarray, k: np.ndarray, cz: np.ndarray, m: np.ndarray) -> np.ndarray:
-    """``theta = (Z, X', Y', s_w, s_h)`` with the offsets that best fit ``g_i Z_i = t + k_i``.
+@dataclass(frozen=True)
+class _Problem:
+    """The arrays of a fit, one (N, n_obs) array per box coordinate in use.
 
-    Shapes: z (N,), g and k (N, n_obs, 4), cz and m (N, n_obs). Returns (N, 5).
+    ``g[c]`` is coordinate ``c`` centred on the principal point (``x - u0``, ``y - v0``,
+    ``w``, ``h``), zero where unused; ``k[c]`` the offset the camera's lateral motion
+    adds (``-a C_X`` for x, ``-b C_Y`` for y, 0 for sizes); ``beta[c]`` the box-noise
+    variance; ``dcam[c]`` the scale of the lateral camera-noise term (``a^2``, ``b^2``,
+    0, 0). ``coords`` lists the coordinates in use (all four, or ``w, h``).
     """
-    zi = z[:, None] - cz
-    msum = np.maximum(m.sum(axis=1), 1.0)
-    t = np.einsum("no,noc->nc", m, g * zi[:, :, None] - k) / msum[:, None]
-    return np.concatenate([z[:, None], t], axis=1)
+
+    coords: tuple[int, ...]
+    g: tuple[np.ndarray, ...]
+    k: tuple[np.ndarray, ...]
+    beta: tuple[np.ndarray, ...]
+    dcam: tuple[float, ...]
+    m: np.ndarray
+    cam: np.ndarray
+    z_low: np.ndarray
+    a: float
+    b: float
+
+    @classmethod
+    def build(
+        cls,
+        boxes: np.ndarray,
+        usable: np.ndarray,
+        camera: np.ndarray,
+        cam_model: tuple[float, float, float, float] | None,
+        params: RobustParams,
+    ) -> _Problem:
+        a, b, u0, v0 = cam_model if cam_model is not None else (0.0, 0.0, 0.0, 0.0)
+        coords = (0, 1, 2, 3) if cam_model is not None else (2, 3)
+        centre = (u0, v0, 0.0, 0.0)
+        g = tuple(np.where(usable, boxes[:, :, c] - centre[c], 0.0) for c in range(4))
+        zero = np.zeros(usable.shape)
+        k = (-a * camera[:, :, 0], -b * camera[:, :, 1], zero, zero)
+        sizes = (g[2], g[3], g[2], g[3])
+        beta = tuple(params.sigma_box**2 + (params.rel_box * sizes[c]) ** 2 for c in range(4))
+        cam = np.moveaxis(camera, 2, 0).copy()  # (3, N, n)
+        z_low = np.max(np.where(usable, cam[2], -np.inf), axis=1) + params.min_depth
+        z_low = np.where(np.isfinite(z_low), z_low, params.min_depth)
+        return cls(coords, g, k, beta, (a * a, b * b, 0.0, 0.0), usable.astype(np.float64), cam, z_low, a, b)
+
+    def take(self, idx: np.ndarray) -> _Problem:
+        """The problem restricted to the examples ``idx``."""
+        return _Problem(
+            self.coords,
+            tuple(x[idx] for x in self.g),
+            tuple(x[idx] for x in self.k),
+            tuple(x[idx] for x in self.beta),
+            self.dcam,
+            self.m[idx],
+            self.cam[:, idx],
+            self.z_low[idx],
+            self.a,
+            self.b,
+        )
 
 
 def _weights(s: np.ndarray, loss: str, scale: float) -> np.ndarray:
-    """IRLS weights for squared Mahalanobis distances ``s`` (any shape)."""
+    """IRLS weights ``rho'(s)`` for squared Mahalanobis distances ``s`` (any shape)."""
     u = s / scale**2
     if loss == "cauchy":
         return 1.0 / (1.0 + u)
@@ -284,7 +316,7 @@ def _weights(s: np.ndarray, loss: str, scale: float) -> np.ndarray:
 
 
 def _rho(s: np.ndarray, loss: str, scale: float) -> np.ndarray:
-    """The robust loss of squared Mahalanobis distances ``s`` (its derivative / 1 is :func:`_weights`)."""
+    """The robust loss of squared Mahalanobis distances ``s`` (``rho(s) = s`` near 0)."""
     c2 = scale**2
     u = s / c2
     if loss == "cauchy":
@@ -292,188 +324,203 @@ def _rho(s: np.ndarray, loss: str, scale: float) -> np.ndarray:
     if loss == "soft_l1":
         return 2.0 * c2 * (np.sqrt(1.0 + u) - 1.0)
     if loss == "huber":
-        r = np.sqrt(u)
-        return np.where(u <= 1.0, s, c2 * (2.0 * r - 1.0))
+        return np.where(u <= 1.0, s, c2 * (2.0 * np.sqrt(u) - 1.0))
     return s
 
 
-def _linear_start(
-    g: np.ndarray,
-    k: np.ndarray,
-    cz: np.ndarray,
-    m: np.ndarray,
-    coord_on: np.ndarray,
-    z_low: np.ndarray,
-    params: RobustParams,
-) -> np.ndarray:
+def _linear_start(prob: _Problem, params: RobustParams) -> np.ndarray:
     """Depth from the linearised equations ``g_ic (Z - C_Zi) = t_c + k_ic``, robustly reweighted.
 
-    For fixed per-observation weights ``v_i``, eliminating the offsets ``t_c`` leaves
+    For per-observation weights ``v_i``, eliminating the offsets ``t_c`` leaves
     ``Z = sum v (g - g_bar)(d - d_bar) / sum v (g - g_bar)^2`` with ``d = g C_Z + k``
-    (sums over observations and coordinates). Returns (N,) depths clipped to ``z_low``.
+    (sums over observations and coordinates). Then Cauchy weights of each
+    observation's residual (in image units, against the example's median residual)
+    and again. Returns (N,) depths, at least ``z_low``.
     """
-    d = g * cz[:, :, None] + k
-    v = m.copy()
-    z = z_low
+    cz = prob.cam[2]
+    v = prob.m
+    z = prob.z_low
+    d = {c: prob.g[c] * cz + prob.k[c] for c in prob.coords}
     for it in range(params.linear_iterations + 1):
         vs = np.maximum(v.sum(axis=1, keepdims=True), 1e-300)
-        gbar = np.einsum("no,noc->nc", v, g)[:, None, :] / vs[:, :, None]
-        dbar = np.einsum("no,noc->nc", v, d)[:, None, :] / vs[:, :, None]
-        gc = (g - gbar) * coord_on
-        dc = d - dbar
-        num = np.einsum("no,noc,noc->n", v, gc, dc)
-        den = np.einsum("no,noc,noc->n", v, gc, gc)
+        num = np.zeros(v.shape[0])
+        den = np.zeros(v.shape[0])
+        gc, dc = {}, {}
+        for c in prob.coords:
+            gc[c] = prob.g[c] - (v * prob.g[c]).sum(axis=1, keepdims=True) / vs
+            dc[c] = d[c] - (v * d[c]).sum(axis=1, keepdims=True) / vs
+            num += (v * gc[c] * dc[c]).sum(axis=1)
+            den += (v * gc[c] * gc[c]).sum(axis=1)
         with np.errstate(divide="ignore", invalid="ignore"):
             z_new = num / den
-        z = np.where(np.isfinite(z_new), np.maximum(z_new, z_low), z_low)
+        z = np.where(np.isfinite(z_new), np.maximum(z_new, prob.z_low), prob.z_low)
         if it == params.linear_iterations:
             break
-        # Residuals in image units: divide the linear residual by Z_i.
         zi = np.maximum(z[:, None] - cz, params.min_depth)
-        res = (gc * z[:, None, None] - dc) / zi[:, :, None] * coord_on
-        # Scale per example: median absolute residual of the used coordinates.
-        r2 = (res**2).sum(axis=2)
-        sig = np.sqrt(_masked_median(r2, m > 0) / max(coord_on.sum(), 1.0))
-        sig = np.maximum(sig, params.sigma_box)
-        v = m * _weights(r2 / (sig[:, None] ** 2 * coord_on.sum()), "cauchy", params.loss_scale)
+        r2 = sum(((gc[c] * z[:, None] - dc[c]) / zi) ** 2 for c in prob.coords)
+        assert isinstance(r2, np.ndarray)
+        scale2 = np.maximum(_masked_median(r2, prob.m > 0), len(prob.coords) * params.sigma_box**2)
+        v = prob.m * _weights(r2 / scale2[:, None], "cauchy", params.loss_scale)
     return z
 
 
 def _masked_median(x: np.ndarray, mask: np.ndarray) -> np.ndarray:
     """Median of ``x`` (N, n) over ``mask`` per row (0 where the mask is empty)."""
-    filled = np.where(mask, x, np.nan)
-    with np.errstate(all="ignore"):
-        cnt = mask.sum(axis=1)
-        srt = np.sort(filled, axis=1)  # NaNs last
-        lo = np.take_along_axis(srt, np.maximum((cnt - 1) // 2, 0)[:, None], axis=1)[:, 0]
-        hi = np.take_along_axis(srt, np.maximum(cnt // 2, 0)[:, None], axis=1)[:, 0]
-    med = 0.5 * (lo + hi)
-    return np.where(cnt > 0, med, 0.0)
+    filled = np.where(mask, x, np.inf)
+    cnt = mask.sum(axis=1)
+    srt = np.sort(filled, axis=1)
+    lo = np.take_along_axis(srt, np.maximum((cnt - 1) // 2, 0)[:, None], axis=1)[:, 0]
+    hi = np.take_along_axis(srt, np.maximum(cnt // 2, 0)[:, None], axis=1)[:, 0]
+    return np.where(cnt > 0, 0.5 * (lo + hi), 0.0)
+
+
+def _offsets(prob: _Problem, z: np.ndarray) -> np.ndarray:
+    """(len(coords), N) offsets ``t_c`` that best fit ``g_ic Z_i = t_c + k_ic`` for depths ``z``."""
+    zi = z[:, None] - prob.cam[2]
+    msum = np.maximum(prob.m.sum(axis=1), 1.0)
+    return np.stack([(prob.m * (prob.g[c] * zi - prob.k[c])).sum(axis=1) / msum for c in prob.coords])
 
 
 def _gauss_newton(
-    theta: np.ndarray,
-    g: np.ndarray,
-    k: np.ndarray,
-    camera: np.ndarray,
-    m: np.ndarray,
-    coord_on: np.ndarray,
-    z_low: np.ndarray,
-    ab: tuple[float, float],
-    params: RobustParams,
+    prob: _Problem, z0: np.ndarray, params: RobustParams
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Robust Levenberg-Marquardt on the reprojection residuals, all examples at once.
 
-    Unknowns: ``theta`` (N, 5) and camera corrections ``delta`` (N, n_obs, 3) with the
-    prior ``N(0, sigma_camera^2)`` (zero variance at the last observation). Objective
-    per example: ``sum_i m_i rho(r_i^T B_i^-1 r_i) + |delta|^2 / sigma_camera^2``, with
-    ``B_i`` the box-noise variances. Each step solves the joint Gauss-Newton system
-    with ``delta`` eliminated in closed form (Schur complement: a 5 x 5 system whose
-    per-observation covariance ``B_i / w_i + J_delta P J_delta^T`` is inverted by
-    Sherman-Morrison), then recovers ``delta``. Damping acts on ``theta``; a step is
-    kept only where it lowers the objective.
+    Unknowns per example: ``Z``, the offsets ``t_c`` of the coordinates in use
+    (``X', Y', s_w, s_h``) and camera corrections ``delta`` (3, n_obs) with the prior
+    ``N(0, sigma_camera^2)`` (none at the last observation, which is zero by
+    definition). Objective: ``sum_i m_i rho(r_i^T B_i^-1 r_i) + |delta|^2 /
+    sigma_camera^2``, with ``B_i`` the box-noise variances and ``r_i`` the residuals at
+    the corrected camera positions. Each step solves the joint Gauss-Newton system
+    with ``delta`` eliminated in closed form: the Schur complement is a small system in
+    ``(Z, t)`` whose per-observation covariance ``B_i / w_i + J_delta P J_delta^T``
+    (``w_i`` the IRLS weight) is a diagonal plus a rank-one term, inverted by
+    Sherman-Morrison; ``delta`` follows from the step. Damping acts on ``(Z, t)``; a
+    step is kept only where it lowers the objective; examples leave the loop once
+    their steps vanish.
 
-    Returns ``(theta (N, 5), final cost (N,), starting cost (N,))``.
+    Returns ``(depth (N,), final objective (N,), starting objective (N,))``.
     """
-    a, b = ab
-    n_obs = camera.shape[1]
+    n, n_obs = prob.m.shape
+    cs = prob.coords
+    nc = len(cs)
     cam_var = np.full(n_obs, params.sigma_camera**2)
-    cam_var[-1] = 0.0  # the last position is zero by definition
-    inv_cam_var = np.where(cam_var > 0, 1.0 / np.where(cam_var > 0, cam_var, 1.0), 0.0)
-    dcam = np.array([a * a, b * b, 0.0, 0.0])
-    ident = np.eye(5)
-    # Box-noise variances from the observed sizes (constant, so the objective is fixed).
-    size = np.abs(g[:, :, [2, 3, 2, 3]])
-    beta = params.sigma_box**2 + (params.rel_box * size) ** 2  # (N, n, 4)
+    cam_var[-1] = 0.0
+    inv_cam_var = np.divide(1.0, cam_var, out=np.zeros(n_obs), where=cam_var > 0)
 
-    def predict_at(th: np.ndarray, dl: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        zi = np.maximum(th[:, :1] - camera[:, :, 2] - dl[:, :, 2], params.min_depth)
-        kk = k.copy()
-        kk[:, :, 0] -= a * dl[:, :, 0]
-        kk[:, :, 1] -= b * dl[:, :, 1]
-        p = (th[:, None, 1:] + kk) / zi[:, :, None]
-        return zi, p
-
-    def objective(th: np.ndarray, dl: np.ndarray) -> tuple[np.ndarray, ...]:
-        zi, p = predict_at(th, dl)
-        r = (g - p) * coord_on
-        s = (r * r / beta).sum(axis=2)
-        prior = ((dl * dl).sum(axis=2) * inv_cam_var).sum(axis=1)
-        cost = (m * _rho(s, params.loss, params.loss_scale)).sum(axis=1) + prior
-        return cost, zi, p, r, s
-
-    delta = np.zeros(camera.shape)
-    cost, zi, p, r, s = objective(theta, delta)
-    cost_start = cost.copy()
-    lam = np.full(theta.shape[0], 1e-4)
+    theta = np.concatenate([z0[None], _offsets(prob, z0)])  # (1 + nc, N)
+    delta = np.zeros((3, n, n_obs))
+    out_theta = theta.copy()
+    pr = prob
+    state = _evaluate(pr, theta, delta, params, inv_cam_var)
+    cost_start = state[0].copy()
+    out_cost = cost_start.copy()
+    ids = np.arange(n)
+    lam = np.full(n, 1e-4)
+    diag = np.eye(1 + nc, dtype=bool)
     for _ in range(params.iterations):
-        om = np.maximum(m * _weights(s, params.loss, params.loss_scale), 1e-12)  # (N, n)
-        q = cam_var / zi**2  # (N, n)
-        mdiag = beta / om[:, :, None] + q[:, :, None] * dcam  # (N, n, 4)
-        pu = p * coord_on
-        # Residual with the current corrections undone (linearised): r + J_delta delta.
-        jd = np.empty_like(r)
-        jd[:, :, 0] = -a * delta[:, :, 0] + p[:, :, 0] * delta[:, :, 2]
-        jd[:, :, 1] = -b * delta[:, :, 1] + p[:, :, 1] * delta[:, :, 2]
-        jd[:, :, 2] = p[:, :, 2] * delta[:, :, 2]
-        jd[:, :, 3] = p[:, :, 3] * delta[:, :, 2]
-        rt = r + jd / zi[:, :, None] * coord_on
-        # Sigma^-1 = diag(1/mdiag) - kappa u u^T, u = p / mdiag (Sherman-Morrison).
-        u = pu / mdiag
-        pu_u = (pu * u).sum(axis=2)
+        cost, zi, p, r, s = state
+        om = np.maximum(pr.m * _weights(s, params.loss, params.loss_scale), 1e-12)
+        iz = 1.0 / zi
+        iz2 = iz * iz
+        q = cam_var * iz2
+        mdiag = [pr.beta[c] / om + q * pr.dcam[c] for c in cs]
+        u = [p[j] / mdiag[j] for j in range(nc)]
+        pu_u = sum(p[j] * u[j] for j in range(nc))
         kappa = q / (1.0 + q * pu_u)
         one_k = 1.0 - kappa * pu_u
-        ru = (rt * u).sum(axis=2)
-        sr = rt / mdiag * coord_on - (kappa * ru)[:, :, None] * u  # Sigma^-1 r~
-        psr = (pu * sr).sum(axis=2)
-        sp = u * one_k[:, :, None]  # Sigma^-1 p
-        psp = pu_u * one_k
-        iz2 = 1.0 / zi**2
-        iz = 1.0 / zi
-        # J_theta = (1/Z_i)[-p, I4].
-        h = np.empty(theta.shape[:1] + (5, 5))
-        h[:, 0, 0] = (iz2 * psp).sum(axis=1)
-        h[:, 0, 1:] = -np.einsum("no,noc->nc", iz2, sp)
-        h[:, 1:, 0] = h[:, 0, 1:]
-        h[:, 1:, 1:] = np.einsum("no,noc,cd->ncd", iz2, coord_on / mdiag, np.eye(4)) - np.einsum(
-            "no,noc,nod->ncd", iz2 * kappa, u, u
-        )
-        h[:, 1:, 1:] += np.diag(1.0 - coord_on)  # unused coordinates: pin X', Y'
-        grad = np.empty(theta.shape[:1] + (5,))
+        # Residual with the current corrections undone (linearised): r + J_delta delta.
+        dz = delta[2] * iz
+        rt = []
+        for j, c in enumerate(cs):
+            extra = p[j] * dz
+            if c == 0:
+                extra = extra - prob.a * delta[0] * iz
+            elif c == 1:
+                extra = extra - prob.b * delta[1] * iz
+            rt.append(r[j] + extra)
+        ru = sum(rt[j] * u[j] for j in range(nc))
+        sr = [rt[j] / mdiag[j] - kappa * ru * u[j] for j in range(nc)]
+        psr = sum(p[j] * sr[j] for j in range(nc))
+        # Normal equations with J_theta = (1/Z_i)[-p, I].
+        h = np.empty((len(ids), 1 + nc, 1 + nc))
+        grad = np.empty((len(ids), 1 + nc))
+        h[:, 0, 0] = (iz2 * pu_u * one_k).sum(axis=1)
         grad[:, 0] = -(iz * psr).sum(axis=1)
-        grad[:, 1:] = np.einsum("no,noc->nc", iz, sr)
-        damped = h + lam[:, None, None] * (h * ident + 1e-12 * ident)
-        step = _solve(damped, grad)
+        kz = iz2 * kappa
+        for j in range(nc):
+            h[:, 0, 1 + j] = h[:, 1 + j, 0] = -(iz2 * u[j] * one_k).sum(axis=1)
+            grad[:, 1 + j] = (iz * sr[j]).sum(axis=1)
+            h[:, 1 + j, 1 + j] = (iz2 / mdiag[j] - kz * u[j] * u[j]).sum(axis=1)
+            for l in range(j + 1, nc):
+                h[:, 1 + j, 1 + l] = h[:, 1 + l, 1 + j] = -(kz * u[j] * u[l]).sum(axis=1)
+        damped = h + (lam[:, None] * (h[:, diag] + 1e-12))[:, :, None] * np.eye(1 + nc)
+        step = _solve(damped, grad).T  # (1 + nc, Na)
         # New corrections: eps = P J_delta^T Sigma^-1 (r~ - J_theta step).
-        jstep = (-(p * step[:, None, :1]) + step[:, None, 1:]) * iz[:, :, None] * coord_on
-        v = rt - jstep
-        vu = (v * u).sum(axis=2)
-        sv = v / mdiag * coord_on - (kappa * vu)[:, :, None] * u
-        pz = (p * sv * coord_on).sum(axis=2)
-        new_delta = np.empty_like(delta)
-        new_delta[:, :, 0] = -a * sv[:, :, 0]
-        new_delta[:, :, 1] = -b * sv[:, :, 1]
-        new_delta[:, :, 2] = pz
-        new_delta *= (cam_var * iz)[:, :, None]
+        v = [rt[j] - (step[1 + j][:, None] - p[j] * step[0][:, None]) * iz for j in range(nc)]
+        vu = sum(v[j] * u[j] for j in range(nc))
+        sv = [v[j] / mdiag[j] - kappa * vu * u[j] for j in range(nc)]
+        fac = cam_var * iz
+        new_delta = np.zeros_like(delta)
+        new_delta[2] = fac * sum(p[j] * sv[j] for j in range(nc))
+        if cs[0] == 0:
+            new_delta[0] = -prob.a * fac * sv[0]
+            new_delta[1] = -prob.b * fac * sv[1]
         new = theta + step
-        zl = np.maximum(z_low, np.max(np.where(m > 0, camera[:, :, 2] + new_delta[:, :, 2], -np.inf), axis=1) + params.min_depth)
-        new[:, 0] = np.maximum(new[:, 0], zl)
-        new_cost, nzi, np_, nr, ns = objective(new, new_delta)
-        better = np.isfinite(new_cost) & (new_cost <= cost)
-        theta = np.where(better[:, None], new, theta)
-        delta = np.where(better[:, None, None], new_delta, delta)
-        cost = np.where(better, new_cost, cost)
+        z_floor = np.max(np.where(pr.m > 0, pr.cam[2] + new_delta[2], -np.inf), axis=1) + params.min_depth
+        new[0] = np.maximum(new[0], np.maximum(pr.z_low, z_floor))
+        new_state = _evaluate(pr, new, new_delta, params, inv_cam_var)
+        better = np.isfinite(new_state[0]) & (new_state[0] <= cost)
+        theta = np.where(better, new, theta)
+        delta = np.where(better[:, None], new_delta, delta)
+        state = tuple(np.where(better if x.ndim == 1 else better[..., None], y, x) for x, y in zip(state, new_state, strict=True))
         lam = np.where(better, np.maximum(lam * 0.3, 1e-9), lam * 10.0)
-        b2 = better[:, None]
-        zi = np.where(b2, nzi, zi)
-        s = np.where(b2, ns, s)
-        p = np.where(b2[:, :, None], np_, p)
-        r = np.where(b2[:, :, None], nr, r)
-    return theta, cost, cost_start
+        tiny = np.abs(step).max(axis=0) <= 1e-10 * (1.0 + np.abs(theta).max(axis=0))
+        done = tiny | (lam > 1e6)
+        out_theta[:, ids] = theta
+        out_cost[ids] = state[0]
+        if done.all():
+            break
+        if _DEBUG:
+            print(len(ids), int(done.sum()), int(better.sum()))
+        if done.mean() > 0.25:
+            keep = ~done
+            ids = ids[keep]
+            pr = pr.take(keep)
+            theta, delta, lam = theta[:, keep], delta[:, keep], lam[keep]
+            state = tuple(x[:, keep] if x.ndim == 3 else x[keep] for x in state)
+    return out_theta[0], out_cost, cost_start
+
+
+def _evaluate(
+    prob: _Problem, theta: np.ndarray, delta: np.ndarray, params: RobustParams, inv_cam_var: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Objective and its pieces at ``theta`` (1 + nc, N) and ``delta`` (3, N, n_obs).
+
+    Returns ``(cost (N,), Z_i (N, n), predictions (nc, N, n), residuals (nc, N, n),
+    squared box-noise Mahalanobis distances (N, n))``.
+    """
+    zi = np.maximum(theta[0][:, None] - prob.cam[2] - delta[2], params.min_depth)
+    iz = 1.0 / zi
+    p = np.empty((len(prob.coords),) + zi.shape)
+    r = np.empty_like(p)
+    s = np.zeros(zi.shape)
+    for j, c in enumerate(prob.coords):
+        num = theta[1 + j][:, None] + prob.k[c]
+        if c == 0:
+            num = num - prob.a * delta[0]
+        elif c == 1:
+            num = num - prob.b * delta[1]
+        p[j] = num * iz
+        r[j] = (prob.g[c] - p[j]) * prob.m
+        s += r[j] * r[j] / prob.beta[c]
+    prior = ((delta * delta).sum(axis=0) * inv_cam_var).sum(axis=1)
+    cost = (prob.m * _rho(s, params.loss, params.loss_scale)).sum(axis=1) + prior
+    return cost, zi, p, r, s
 
 
 def _solve(h: np.ndarray, grad: np.ndarray) -> np.ndarray:
-    """Solve the stacked systems ``h x = grad``; singular ones give a zero step."""
+    """Solve the stacked systems ``h x = grad`` (N, k, k) (N, k); a singular one gives a zero step."""
     ok = np.isfinite(h).all(axis=(1, 2)) & np.isfinite(grad).all(axis=1)
     hh = np.where(ok[:, None, None], h, np.eye(h.shape[1]))
     gg = np.where(ok[:, None], grad, 0.0)
@@ -481,7 +528,7 @@ def _solve(h: np.ndarray, grad: np.ndarray) -> np.ndarray:
         x = np.linalg.solve(hh, gg[:, :, None])[:, :, 0]
     except np.linalg.LinAlgError:
         x = np.zeros_like(gg)
-        for i in np.flatnonzero(ok):  # rare: only when some matrix is exactly singular
+        for i in np.flatnonzero(ok):  # only when some matrix is exactly singular: rare
             try:
                 x[i] = np.linalg.solve(hh[i], gg[i])
             except np.linalg.LinAlgError:
