@@ -19,7 +19,7 @@ from odmd_bench.errors import (
     ValidationError,
 )
 from odmd_bench.examples import Examples, fill_missing, nearest_detected_index
-from odmd_bench.generate import GENERATOR_VERSION, generate
+from odmd_bench.generate import GENERATOR_VERSION, generate, stream
 
 __version__ = "0.1.0"
 
@@ -42,4 +42,5 @@ __all__ = [
     "load",
     "load_split",
     "nearest_detected_index",
+    "stream",
 ]

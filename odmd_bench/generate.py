@@ -21,6 +21,8 @@ Order of draws for ``N`` examples of ``n`` observations (version 1):
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+
 import numpy as np
 
 from odmd_bench.config import GeneratorConfig, check_perturbation, get_preset
@@ -193,3 +195,26 @@ def _generate_arrays(
         "camera_clean": camera_clean,
         "replaced": replaced,
     }
+
+
+def stream(
+    batch_size: int,
+    preset: str | GeneratorConfig = "odmd",
+    perturbation: str = "both",
+    rng: int | np.random.Generator = 0,
+) -> Iterator[Examples]:
+    """An endless stream of fresh training batches from one random generator.
+
+    Batch ``k`` of ``stream(b, ..., rng=seed)`` is a pure function of the seed and ``k``
+    (each batch advances the same generator), so a training run can be replayed.
+
+    Example:
+        >>> batches = stream(512, perturbation="both", rng=0)
+        >>> next(batches).boxes.shape
+        (512, 10, 4)
+    """
+    gen = as_rng(rng)
+    config = get_preset(preset)
+    check_perturbation(perturbation)
+    while True:
+        yield generate(batch_size, config, perturbation, gen)
