@@ -363,51 +363,52 @@ def read_predictions(
 
     split = _single_value("split", [(ln, c[cols["split"]]) for ln, c in good], SPLITS, problems, "split")
 
-    # Per-row values: set, index, depth.
+    # Per-row values: set, index, depth. A row whose set and index are valid counts as
+    # present (for duplicates and gaps) even when its depth is bad, so that one bad
+    # depth is reported once, not also as a missing example.
     parsed: list[tuple[int, str, int, float]] = []
     ignored_rows: dict[str, int] = {}
     nonpositive: list[str] = []
     n_nonpositive = 0
     for line, cells in good:
         set_name, index_s, depth_s = cells[cols["set"]], cells[cols["index"]], cells[cols["depth"]]
-        ok = True
+        key_ok = True
         if bench is not None and set_name not in bench.sets:
             problems.add(
                 f"unknown set for benchmark {bench.name!r}",
                 f"line {line} ({_show(set_name)}{_closest(set_name, bench.sets).replace('; ', ': ')})",
                 note=f"expected one of {', '.join(bench.sets)}",
             )
-            ok = False
+            key_ok = False
         index = 0
         if _INT.fullmatch(index_s) and len(index_s) <= 18:
             index = int(index_s)
         elif _INT.fullmatch(index_s):
             problems.add("index out of range", f"line {line} ({_show(index_s)})")
-            ok = False
+            key_ok = False
         else:
             problems.add("index is not an integer", f"line {line} ({_show(index_s)})")
-            ok = False
-        depth = 0.0
+            key_ok = False
+        depth = np.nan
         if _FLOAT.fullmatch(depth_s):
             depth = float(depth_s)
             if not np.isfinite(depth):
                 problems.add("depth is too large to be a finite float64", f"line {line} ({_show(depth_s)})")
-                ok = False
+                depth = np.nan
         elif _NONFINITE.fullmatch(depth_s):
             problems.add("depth is NaN or infinite", f"line {line} ({_show(depth_s)})")
-            ok = False
         else:
             problems.add("depth is not a number", f"line {line} ({_show(depth_s)})")
-            ok = False
-        if ok and scope is not None and set_name not in scope:
+        if not key_ok:
+            continue
+        if scope is not None and set_name not in scope:
             ignored_rows[set_name] = ignored_rows.get(set_name, 0) + 1
             continue
-        if ok:
-            if depth <= 0:
-                n_nonpositive += 1
-                if len(nonpositive) < SHOWN:
-                    nonpositive.append(f"line {line} ({set_name} {index}: {depth_s})")
-            parsed.append((line, set_name, index, depth))
+        if depth <= 0:
+            n_nonpositive += 1
+            if len(nonpositive) < SHOWN:
+                nonpositive.append(f"line {line} ({set_name} {index}: {depth_s})")
+        parsed.append((line, set_name, index, depth))
 
     depths: dict[str, np.ndarray] = {}
     if bench is not None and scope is not None:
@@ -468,8 +469,10 @@ def _place(
     bench: Benchmark,
 ) -> dict[str, np.ndarray]:
     """Put each estimate at its index; find duplicates and, given the sizes, indices
-    out of range and examples without a row."""
+    out of range and examples without a row. (A bad depth arrives as NaN; its
+    problem is already recorded.)"""
     depths = {s: np.full(int(sizes[s]), np.nan) for s in scope} if sizes is not None else {}
+    seen = {s: np.zeros(int(sizes[s]), dtype=bool) for s in scope} if sizes is not None else {}
     first_line: dict[tuple[str, int], int] = {}
     for line, set_name, index, depth in parsed:
         if sizes is not None:
@@ -490,8 +493,9 @@ def _place(
         first_line[key] = line
         if sizes is not None:
             depths[set_name][index] = depth
+            seen[set_name][index] = True
     for s in scope if sizes is not None else ():
-        gaps = np.flatnonzero(np.isnan(depths[s]))
+        gaps = np.flatnonzero(~seen[s])
         if gaps.size == len(depths[s]):
             hint = (
                 "it was named by --sets"
