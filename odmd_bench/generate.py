@@ -102,87 +102,119 @@ def generate(
     )
 
 
+#: Examples per chunk of arithmetic: the random draws are made for the whole batch
+#: (their order defines the data), the geometry is computed chunk by chunk so that the
+#: temporaries stay in cache. Any chunk size gives the same numbers.
+_CHUNK = 1024
+
+
 def _generate_arrays(
     n: int, config: GeneratorConfig, perturbation: str, rng: np.random.Generator
 ) -> dict[str, np.ndarray]:
     n_obs = config.n_obs
     cam = config.camera
     u = rng.random((n, 12 + 3 * (n_obs - 2)))
-
-    # Total camera move delta = p_n - p_1: uniform magnitude per axis, random sign.
-    move_min = np.asarray(config.move_min)
-    move_max = np.asarray(config.move_max)
-    delta = move_min + u[:, 0:3] * (move_max - move_min)
-    np.negative(delta, out=delta, where=u[:, 3:6] < 0.5)
-
-    s_lo, s_hi = config.object_size
-    size = s_lo + u[:, 6:8] * (s_hi - s_lo)  # W, H
-    z_lo, z_hi = config.initial_depth
-    z1 = z_lo + u[:, 8] * (z_hi - z_lo)
-
-    # X1, Y1 within the view bounds for Z1 (supplementary, eq. X1min).
-    half = s_hi / 2
-    room = z1 - move_max[2]
-    x_lo = (cam.cx / cam.fx) * -room + move_max[0] + half
-    x_hi = ((cam.image_width - cam.cx) / cam.fx) * room - move_max[0] - half
-    y_lo = (cam.cy / cam.fy) * -room + move_max[1] + half
-    y_hi = ((cam.image_height - cam.cy) / cam.fy) * room - move_max[1] - half
-    reverse = u[:, 11] < config.reverse_prob
-
-    # Camera path in generation order: p_i = p_1 + t_i (p_n - p_1) with t_1 = 0, t_n = 1
-    # and the intermediate t_i uniform and sorted (monotonic motion on every axis).
-    # Relative to the last observation of the *output* order, the camera is
-    #   (t_i - 1) delta           when the sequence is kept,
-    #   t_(n+1-i) delta           when it is reversed (the first generated position is last),
-    # so the reversal is a choice of coefficients, not a copy of every array.
-    t = np.sort(u[:, 12:].reshape(n, 3, n_obs - 2), axis=2).transpose(0, 2, 1)
-    keep = ~reverse
-    coef = np.empty((n, n_obs, 3))
-    coef[:, 0] = np.where(keep, -1.0, 1.0)[:, None]
-    coef[:, -1] = 0.0
-    coef[:, 1:-1] = t
-    coef[keep, 1:-1] -= 1.0
-    coef[reverse, 1:-1] = coef[reverse, -2:0:-1]
-    camera = coef
-    camera[:, :-1] *= delta[:, None, :]  # the last row stays +0.0
-
-    # The object is static: at each observation it sits at P_last - camera_i, where
-    # P_last is P_1 - delta (kept) or P_1 itself (reversed).
-    last = np.empty((n, 3))
-    last[:, 0] = x_lo + u[:, 9] * (x_hi - x_lo)
-    last[:, 1] = y_lo + u[:, 10] * (y_hi - y_lo)
-    last[:, 2] = z1
-    last[keep] -= delta[keep]
-    positions = last[:, None, :] - camera
-
-    inv_z = 1.0 / positions[:, :, 2]
-    boxes = np.empty((n, n_obs, 4))
-    boxes[:, :, 0] = positions[:, :, 0] * inv_z * (cam.fx / cam.image_width) + cam.cx / cam.image_width
-    boxes[:, :, 1] = positions[:, :, 1] * inv_z * (cam.fy / cam.image_height) + cam.cy / cam.image_height
-    boxes[:, :, 2] = inv_z * (size[:, 0:1] * (cam.fx / cam.image_width))
-    boxes[:, :, 3] = inv_z * (size[:, 1:2] * (cam.fy / cam.image_height))
-
-    camera_clean = camera
+    cam_noise = None
     if perturbation in ("camera", "both") and config.camera_sigma > 0:
-        noise = rng.standard_normal((n, n_obs - 1, 3))
-        noise *= config.camera_sigma
-        camera = np.empty_like(camera_clean)
-        np.add(camera_clean[:, :-1], noise, out=camera[:, :-1])
-        camera[:, -1] = 0.0
-
-    replaced = np.zeros((n, n_obs), dtype=bool)
+        cam_noise = rng.standard_normal((n, n_obs - 1, 3))
+    box_noise = None
+    replacement = None
     if perturbation in ("object", "both"):
         if config.box_sigma > 0:
-            noise = rng.standard_normal((n, n_obs, 4))
-            noise *= config.box_sigma
-            boxes += noise
+            box_noise = rng.standard_normal((n, n_obs, 4))
         if config.replace_prob > 0 and n > 1:
             hit = rng.random(n) < config.replace_prob
             obs = rng.integers(0, n_obs, n)
-            donor = (np.arange(n) + rng.integers(1, n, n)) % n
-            rows = np.flatnonzero(hit)
-            boxes[rows, obs[rows]] = boxes[donor[rows], obs[rows]]
-            replaced[rows, obs[rows]] = True
+            offset = rng.integers(1, n, n)
+            replacement = (hit, obs, offset)
+
+    move_min = np.asarray(config.move_min)
+    move_max = np.asarray(config.move_max)
+    s_lo, s_hi = config.object_size
+    z_lo, z_hi = config.initial_depth
+    half = s_hi / 2
+    fxn = cam.fx / cam.image_width
+    fyn = cam.fy / cam.image_height
+    cxn = cam.cx / cam.image_width
+    cyn = cam.cy / cam.image_height
+
+    size = s_lo + u[:, 6:8] * (s_hi - s_lo)  # object W, H
+    boxes = np.empty((n, n_obs, 4))
+    positions = np.empty((n, n_obs, 3))
+    camera_clean = np.empty((n, n_obs, 3))
+    camera = camera_clean if cam_noise is None else np.empty((n, n_obs, 3))
+
+    for a in range(0, n, _CHUNK):
+        b = min(n, a + _CHUNK)
+        uc = u[a:b]
+        m = b - a
+        # Total camera move delta = p_n - p_1: uniform magnitude per axis, random sign.
+        delta = move_min + uc[:, 0:3] * (move_max - move_min)
+        np.negative(delta, out=delta, where=uc[:, 3:6] < 0.5)
+        z1 = z_lo + uc[:, 8] * (z_hi - z_lo)
+        # X1, Y1 within the view bounds for Z1 (supplementary, eq. X1min).
+        room = z1 - move_max[2]
+        x_lo = (cam.cx / cam.fx) * -room + move_max[0] + half
+        x_hi = ((cam.image_width - cam.cx) / cam.fx) * room - move_max[0] - half
+        y_lo = (cam.cy / cam.fy) * -room + move_max[1] + half
+        y_hi = ((cam.image_height - cam.cy) / cam.fy) * room - move_max[1] - half
+        reverse = uc[:, 11] < config.reverse_prob
+        keep = ~reverse
+
+        # Camera path in generation order: p_i = p_1 + t_i (p_n - p_1), t_1 = 0, t_n = 1,
+        # the intermediate t_i uniform and sorted (monotonic motion on every axis).
+        # Relative to the last observation of the *output* order, the camera is
+        #   (t_i - 1) delta      when the sequence is kept,
+        #   t_(n+1-i) delta      when it is reversed (the first generated position is last),
+        # so the reversal is a choice of coefficients, not a copy of every array.
+        t = np.sort(uc[:, 12:].reshape(m, 3, n_obs - 2), axis=2).transpose(0, 2, 1)
+        coef = camera_clean[a:b]
+        coef[:, 0] = np.where(keep, -1.0, 1.0)[:, None]
+        coef[:, -1] = 0.0
+        coef[:, 1:-1] = t
+        coef[keep, 1:-1] -= 1.0
+        coef[reverse, 1:-1] = coef[reverse, -2:0:-1]
+        coef[:, :-1] *= delta[:, None, :]  # the last row stays +0.0
+
+        # The object is static: at each observation it sits at P_last - camera_i, where
+        # P_last is P_1 - delta (kept) or P_1 itself (reversed).
+        last = np.empty((m, 3))
+        last[:, 0] = x_lo + uc[:, 9] * (x_hi - x_lo)
+        last[:, 1] = y_lo + uc[:, 10] * (y_hi - y_lo)
+        last[:, 2] = z1
+        last[keep] -= delta[keep]
+        pos = positions[a:b]
+        np.subtract(last[:, None, :], coef, out=pos)
+
+        # Pinhole projection, normalised by the image size.
+        inv_z = 1.0 / pos[:, :, 2]
+        bx = boxes[a:b]
+        bx[:, :, 0] = pos[:, :, 0] * inv_z * fxn + cxn
+        bx[:, :, 1] = pos[:, :, 1] * inv_z * fyn + cyn
+        bx[:, :, 2] = inv_z * (size[a:b, 0:1] * fxn)
+        bx[:, :, 3] = inv_z * (size[a:b, 1:2] * fyn)
+
+        # Perturbations: camera noise on every position but the last, box noise on
+        # every coordinate.
+        if cam_noise is not None:
+            noise = cam_noise[a:b]
+            noise *= config.camera_sigma
+            np.add(coef[:, :-1], noise, out=camera[a:b, :-1])
+            camera[a:b, -1] = 0.0
+        if box_noise is not None:
+            noise = box_noise[a:b]
+            noise *= config.box_sigma
+            bx += noise
+
+    # Replacement of one box by the box another example has at the same observation
+    # (after the noise, so the donor box is a noisy detection too).
+    replaced = np.zeros((n, n_obs), dtype=bool)
+    if replacement is not None:
+        hit, obs, offset = replacement
+        donor = (np.arange(n) + offset) % n
+        rows = np.flatnonzero(hit)
+        boxes[rows, obs[rows]] = boxes[donor[rows], obs[rows]]
+        replaced[rows, obs[rows]] = True
 
     observation_depth = positions[:, :, 2]
     return {
