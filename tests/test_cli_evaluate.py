@@ -1,0 +1,228 @@
+"""``odmd-bench evaluate`` and ``odmd-bench compare`` through click's CliRunner."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+import odmd_bench
+from odmd_bench.benchmarks import set_file
+from odmd_bench.cli import cli
+from odmd_bench.io import write_sets
+from odmd_bench.predictions import write_predictions
+from odmd_bench.report import PER_EXAMPLE_COLUMNS
+
+SETS = ("normal", "camera", "object", "robot")
+N = {"normal": 6, "camera": 5, "object": 4, "robot": 3}
+
+
+@pytest.fixture()
+def data(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    d = tmp_path / "data"
+    sets = {s: odmd_bench.generate(N[s], perturbation="both", rng=i) for i, s in enumerate(SETS)}
+    write_sets(set_file("odmd-paper", "test", d), sets)
+    monkeypatch.setenv("ODMD_BENCH_DATA", str(d))
+    return d
+
+
+def preds(tmp_path: Path, name: str = "p.csv", scale: float = 0.1, seed: int = 0, **kw: object) -> Path:
+    rng = np.random.default_rng(seed)
+    truth = {s: ex.depth for s, ex in odmd_bench.load_split("test", "odmd-paper").items()}
+    p = tmp_path / name
+    write_predictions(p, "test", {s: z * (1 + rng.normal(0, scale, z.shape)) for s, z in truth.items()}, **kw)  # type: ignore[arg-type]
+    return p
+
+
+def run(*args: str) -> tuple[int, str, str]:
+    r = CliRunner().invoke(cli, list(args))
+    return r.exit_code, r.stdout, r.stderr
+
+
+def test_table(data: Path, tmp_path: Path) -> None:
+    code, out, err = run("evaluate", str(preds(tmp_path)), "--benchmark", "odmd-paper")
+    assert code == 0, err
+    lines = out.splitlines()
+    assert lines[0].startswith("odmd-paper test: p.csv (sha256 ")
+    assert "percent error (%)" in out and "absolute error (m)" in out
+    names = [ln.split()[0] for ln in lines if len(ln.split()) > 2 and ln.split()[1].isdigit()]
+    assert names == [*SETS, "All"]
+    row = next(ln for ln in lines if ln.startswith("robot")).split()
+    assert row[1] == "3" and len(row) == 12  # name, n, 5 percent, 5 absolute
+    assert err == ""
+
+
+def test_json_has_the_contract_keys_and_matches_the_library(data: Path, tmp_path: Path) -> None:
+    p = preds(tmp_path)
+    code, out, _ = run("evaluate", str(p), "--benchmark", "odmd-paper", "--format", "json")
+    assert code == 0
+    d = json.loads(out)
+    assert {"benchmark", "split", "sets", "all", "provenance"} <= set(d)
+    assert list(d["sets"]) == list(SETS)
+    stats = {"mean", "median", "min", "max", "std"}
+    for s in SETS:
+        assert d["sets"][s]["n"] == N[s]
+        assert set(d["sets"][s]["percent_error"]) == stats == set(d["sets"][s]["absolute_error"])
+    lib = odmd_bench.evaluate.evaluate(p, benchmark="odmd-paper")
+    assert d["all"]["percent_error_mean"] == lib.all_percent_error_mean  # exact through JSON
+    assert d["provenance"]["predictions_sha256"] == lib.provenance["predictions_sha256"]
+
+
+def test_csv_and_markdown(data: Path, tmp_path: Path) -> None:
+    p = preds(tmp_path)
+    code, out, _ = run("evaluate", str(p), "--benchmark", "odmd-paper", "--format", "csv")
+    assert code == 0
+    table = list(csv.DictReader(io.StringIO(out)))
+    assert [r["set"] for r in table] == [*SETS, "All"]
+    lib = odmd_bench.evaluate.evaluate(p, benchmark="odmd-paper")
+    assert float(table[2]["percent_error_max"]) == lib.sets["object"]["percent_error"]["max"]
+    assert float(table[-1]["percent_error_mean"]) == lib.all_percent_error_mean
+    code, out, _ = run("evaluate", str(p), "--benchmark", "odmd-paper", "--format", "markdown")
+    assert code == 0
+    rows = [ln for ln in out.splitlines() if ln.startswith("|")]
+    assert len(rows) == 2 + 4 + 1 and rows[-1].startswith("| **All** |")
+
+
+def test_benchmark_column_and_sets(data: Path, tmp_path: Path) -> None:
+    p = preds(tmp_path, benchmark="odmd-paper")
+    code, out, err = run("evaluate", str(p), "--sets", "robot,camera", "--format", "json")
+    assert code == 0
+    assert list(json.loads(out)["sets"]) == ["camera", "robot"]
+    assert "warning: ignored rows of sets not asked for: normal (6 rows), object (4 rows)" in err
+
+
+def test_per_example_file(data: Path, tmp_path: Path) -> None:
+    out_file = tmp_path / "out" / "per_example.csv"
+    code, _, err = run(
+        "evaluate", str(preds(tmp_path)), "--benchmark", "odmd-paper", "--per-example", str(out_file)
+    )
+    assert code == 0
+    assert f"wrote per-example errors to {out_file}" in err
+    with out_file.open() as fh:
+        table = list(csv.DictReader(fh))
+    assert list(table[0]) == list(PER_EXAMPLE_COLUMNS)
+    assert len(table) == sum(N.values())
+    robot = odmd_bench.load("test", "robot", "odmd-paper")
+    last = [r for r in table if r["set"] == "robot"][-1]
+    assert int(last["index"]) == 2 and float(last["truth"]) == robot.depth[2]
+    assert int(last["n_detected"]) == int(robot.detected[2].sum())
+    assert float(last["camera_move"]) == pytest.approx(np.linalg.norm(robot.camera[2, 0]), rel=1e-15)
+    pred, truth = float(last["prediction"]), float(last["truth"])
+    assert float(last["percent_error"]) == abs(truth - pred) / truth * 100
+    assert sorted(x.name for x in out_file.parent.iterdir()) == ["per_example.csv"]  # no temp file left
+
+
+def test_bad_file_exits_2_with_every_problem(data: Path, tmp_path: Path) -> None:
+    p = tmp_path / "bad.csv"
+    p.write_text("split,set,index,depth\ntest,normal,0,nan\ntest,nromal,1,1\ntest,normal,x,1\n")
+    code, out, err = run("evaluate", str(p), "--benchmark", "odmd-paper")
+    assert code == 2 and out == ""
+    assert err.startswith("error: ")
+    for words in (
+        "depth is NaN or infinite (1 row): line 2",
+        "did you mean 'normal'",
+        "index is not an integer",
+        "has no rows",
+    ):
+        assert words in err
+    assert "Traceback" not in err
+
+
+def test_negative_depth_warns_on_stderr_and_stdout_stays_json(data: Path, tmp_path: Path) -> None:
+    p = tmp_path / "neg.csv"
+    truth = {s: ex.depth.copy() for s, ex in odmd_bench.load_split("test", "odmd-paper").items()}
+    truth["object"][1] = -0.5
+    write_predictions(p, "test", truth)
+    code, out, err = run("evaluate", str(p), "--benchmark", "odmd-paper", "--format", "json")
+    assert code == 0
+    assert json.loads(out)["sets"]["object"]["percent_error"]["max"] > 100
+    assert err.startswith("warning: 1 depth is zero or negative (scored as given)")
+
+
+@pytest.mark.parametrize(
+    ("args", "words"),
+    [
+        (["--format", "yaml"], "Invalid value for '--format'"),
+        (["--benchmark", "odmd-v9"], "unknown benchmark 'odmd-v9'"),
+        (["--sets", "robt"], "did you mean 'robot'"),
+    ],
+)
+def test_usage_errors_exit_2(data: Path, tmp_path: Path, args: list[str], words: str) -> None:
+    base = ["--benchmark", "odmd-paper"] if "--benchmark" not in args else []
+    code, _, err = run("evaluate", str(preds(tmp_path)), *base, *args)
+    assert code == 2 and words in err
+
+
+def test_missing_imported_data_exits_2(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("ODMD_BENCH_DATA", str(tmp_path / "empty"))
+    p = tmp_path / "p.csv"
+    p.write_text("split,set,index,depth\ntest,normal,0,1.0\n")
+    code, _, err = run("evaluate", str(p), "--benchmark", "odmd-paper")
+    assert code == 2 and "odmd-bench import" in err
+
+
+def test_data_dir_option(data: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    p = preds(tmp_path)
+    monkeypatch.setenv("ODMD_BENCH_DATA", str(tmp_path / "elsewhere"))
+    code, _, _ = run("evaluate", str(p), "--benchmark", "odmd-paper")
+    assert code == 2
+    code, _, err = run("evaluate", str(p), "--benchmark", "odmd-paper", "--data-dir", str(data))
+    assert code == 0, err
+
+
+def test_compare(data: Path, tmp_path: Path) -> None:
+    a = preds(tmp_path, "a.csv", scale=0.01, seed=1)
+    b = preds(tmp_path, "b.csv", scale=0.5, seed=2)
+    code, out, err = run("compare", str(a), str(b), "--benchmark", "odmd-paper")
+    assert code == 0, err
+    assert "A = a.csv, B = b.csv" in out
+    lines = out.splitlines()
+    names = [ln.split()[0] for ln in lines if len(ln.split()) > 2 and ln.split()[1].isdigit()]
+    assert names == [*SETS, "All"]
+    all_row = next(ln for ln in lines if ln.startswith("All"))
+    assert all_row.endswith(("A better", "not distinguishable"))
+    code, out, _ = run(
+        "compare", str(a), str(b), "--benchmark", "odmd-paper", "--format", "json", "--seed", "3"
+    )
+    d = json.loads(out)
+    assert d["method"]["seed"] == 3 and set(d["sets"]) == set(SETS)
+    assert d["all"]["difference"] < 0
+    code2, out2, _ = run(
+        "compare", str(a), str(b), "--benchmark", "odmd-paper", "--format", "json", "--seed", "3"
+    )
+    assert out2 == out  # reproducible
+    for fmt in ("csv", "markdown"):
+        code, out, _ = run("compare", str(a), str(b), "--benchmark", "odmd-paper", "--format", fmt)
+        assert code == 0 and "All" in out
+
+
+def test_compare_bad_file_exits_2(data: Path, tmp_path: Path) -> None:
+    a = preds(tmp_path, "a.csv")
+    b = tmp_path / "b.csv"
+    b.write_text("nothing useful\n")
+    code, out, err = run("compare", str(a), str(b), "--benchmark", "odmd-paper")
+    assert code == 2 and out == "" and "B (" in err and "missing column" in err
+
+
+def test_evaluate_never_imports_torch(data: Path, tmp_path: Path) -> None:
+    p = preds(tmp_path)
+    script = (
+        "import sys\n"
+        "from click.testing import CliRunner\n"
+        "from odmd_bench.cli import cli\n"
+        f"r = CliRunner().invoke(cli, ['evaluate', {str(p)!r}, '--benchmark', 'odmd-paper', '--format', 'json'])\n"
+        "assert r.exit_code == 0, r.output\n"
+        f"r = CliRunner().invoke(cli, ['compare', {str(p)!r}, {str(p)!r}, '--benchmark', 'odmd-paper'])\n"
+        "assert r.exit_code == 0, r.output\n"
+        "print(sorted(m for m in sys.modules if m.split('.')[0] in ('torch', 'scipy', 'matplotlib')))\n"
+    )
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, check=False)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "[]"

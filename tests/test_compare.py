@@ -1,0 +1,171 @@
+"""Paired comparison of two methods (bootstrap interval, sign-flip test, verdicts)."""
+
+from __future__ import annotations
+
+import doctest
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import odmd_bench
+from odmd_bench import UsageError, ValidationError, compare
+from odmd_bench.benchmarks import set_file
+from odmd_bench.compare import A_BETTER, B_BETTER, TIE, compare_errors, compare_files, compare_results
+from odmd_bench.evaluate import evaluate
+from odmd_bench.io import write_sets
+from odmd_bench.predictions import write_predictions
+
+SETS = ("normal", "camera", "object", "robot")
+
+
+def errors(
+    seed: int, n: int = 300, shift: float = 0.0
+) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
+    rng = np.random.default_rng(seed)
+    a = {s: rng.gamma(2.0, 5.0, n) for s in SETS}
+    b = {s: a[s] + shift + rng.normal(0.0, 1.0, n) for s in SETS}
+    return a, b
+
+
+def test_identical_methods_are_not_distinguishable() -> None:
+    a, _ = errors(0)
+    c = compare_errors(a, {s: v.copy() for s, v in a.items()})
+    for d in [*c.sets.values(), c.all]:
+        assert (d.difference, d.ci_low, d.ci_high, d.p_value) == (0.0, 0.0, 0.0, 1.0)
+        assert d.verdict == TIE
+
+
+def test_a_clearly_better_and_swapping_mirrors_exactly() -> None:
+    a, b = errors(1, shift=1.0)  # B's error is 1 point higher
+    ab = compare_errors(a, b, seed=3)
+    ba = compare_errors(b, a, seed=3)
+    for s in SETS:
+        assert ab.sets[s].verdict == A_BETTER and ba.sets[s].verdict == B_BETTER
+        assert ab.sets[s].ci_low < -0.7 and ab.sets[s].ci_high < 0
+        # same resamples: every bootstrap mean is negated, so the interval mirrors
+        assert ba.sets[s].difference == -ab.sets[s].difference
+        assert ba.sets[s].ci_low == pytest.approx(-ab.sets[s].ci_high, rel=1e-12)
+        assert ba.sets[s].p_value == ab.sets[s].p_value
+    assert ab.all.verdict == A_BETTER and ba.all.verdict == B_BETTER
+
+
+def test_all_is_the_mean_of_set_differences_and_lies_in_its_interval() -> None:
+    a, b = errors(2, shift=0.2)
+    c = compare_errors(a, b)
+    assert c.all.difference == pytest.approx(np.mean([c.sets[s].difference for s in SETS]), rel=1e-13)
+    assert c.all.mean_a == pytest.approx(np.mean([a[s].mean() for s in SETS]), rel=1e-13)
+    assert c.all.ci_low < c.all.difference < c.all.ci_high
+    assert c.all.n == 4 * 300
+    # stratified over 4 sets, All's interval is narrower than one set's
+    widths = [c.sets[s].ci_high - c.sets[s].ci_low for s in SETS]
+    assert c.all.ci_high - c.all.ci_low < min(widths)
+
+
+def test_reproducible_and_independent_of_other_sets() -> None:
+    a, b = errors(4, shift=0.1)
+    c1 = compare_errors(a, b, seed=7)
+    c2 = compare_errors(a, b, seed=7)
+    assert c1 == c2
+    only = compare_errors({"robot": a["robot"]}, {"robot": b["robot"]}, seed=7)
+    assert only.sets["robot"] == c1.sets["robot"]
+    other = compare_errors(a, b, seed=8)
+    assert other.sets["robot"].ci_low != c1.sets["robot"].ci_low
+
+
+def test_bootstrap_interval_has_the_expected_width() -> None:
+    # d ~ N(0.5, 1), n = 400: the mean's standard error is 0.05, a 95 % interval ~ +-0.098.
+    rng = np.random.default_rng(5)
+    d = rng.normal(0.5, 1.0, 400)
+    c = compare_errors({"normal": d}, {"normal": np.zeros(400)}, n_resamples=4000)
+    se = d.std() / np.sqrt(400)
+    assert (c.sets["normal"].ci_high - c.sets["normal"].ci_low) == pytest.approx(2 * 1.96 * se, rel=0.1)
+    assert c.sets["normal"].verdict == B_BETTER
+
+
+def test_verdict_needs_the_test_too() -> None:
+    # Five examples all favouring A: the bootstrap interval excludes 0, but the exact
+    # sign-flip p-value is 2 / 2**5 = 0.0625, so this is not called a difference.
+    a = {"normal": np.array([1.0, 2.0, 3.0, 4.0, 5.0])}
+    b = {"normal": a["normal"] + np.array([0.9, 1.0, 1.1, 1.0, 0.95])}
+    d = compare_errors(a, b, n_resamples=4000).sets["normal"]
+    assert d.ci_high < 0
+    assert d.p_value == pytest.approx(0.0625, abs=0.015)
+    assert d.verdict == TIE
+
+
+def test_noise_only_is_not_distinguishable() -> None:
+    rng = np.random.default_rng(6)
+    a = {s: rng.gamma(2.0, 5.0, 500) for s in SETS}
+    b = {s: rng.permutation(a[s]) for s in SETS}  # same distribution, no shift
+    c = compare_errors(a, b)
+    assert c.all.verdict == TIE and c.all.p_value > 0.05
+
+
+@pytest.mark.parametrize(
+    ("a", "b", "kw", "words"),
+    [
+        ({"normal": [1.0]}, {"camera": [1.0]}, {}, "same sets"),
+        ({}, {}, {}, "no sets"),
+        ({"normal": [1.0, 2.0]}, {"normal": [1.0]}, {}, "same non-empty"),
+        ({"normal": [1.0]}, {"normal": [np.nan]}, {}, "finite"),
+        ({"normal": [1.0]}, {"normal": [1.0]}, {"n_resamples": 0}, "n_resamples"),
+        ({"normal": [1.0]}, {"normal": [1.0]}, {"confidence": 1.0}, "confidence"),
+    ],
+)
+def test_bad_arguments(a: dict, b: dict, kw: dict, words: str) -> None:
+    with pytest.raises(UsageError, match=words):
+        compare_errors(a, b, **kw)
+
+
+@pytest.fixture()
+def data(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    d = tmp_path / "data"
+    for k, split in enumerate(("val", "test")):
+        sets = {s: odmd_bench.generate(40, rng=10 * k + i) for i, s in enumerate(SETS)}
+        write_sets(set_file("odmd-paper", split, d), sets)
+    monkeypatch.setenv("ODMD_BENCH_DATA", str(d))
+    return d
+
+
+def _preds(tmp_path: Path, name: str, scale: float, seed: int, split: str = "test") -> Path:
+    rng = np.random.default_rng(seed)
+    truth = {s: ex.depth for s, ex in odmd_bench.load_split(split, "odmd-paper").items()}
+    p = tmp_path / name
+    write_predictions(p, split, {s: z * (1 + rng.normal(0, scale, z.shape)) for s, z in truth.items()})
+    return p
+
+
+def test_compare_files(data: Path, tmp_path: Path) -> None:
+    a = _preds(tmp_path, "a.csv", 0.01, 1)
+    b = _preds(tmp_path, "b.csv", 0.3, 2)
+    c, ra, rb = compare_files(a, b, benchmark="odmd-paper")
+    assert c.all.verdict == A_BETTER
+    assert c.all.mean_a == pytest.approx(ra.all_percent_error_mean, rel=1e-13)
+    assert c.all.mean_b == pytest.approx(rb.all_percent_error_mean, rel=1e-13)
+    d = c.to_dict()
+    assert d["provenance"]["a"]["predictions_file"] == "a.csv" and d["method"]["seed"] == 0
+    assert (d["benchmark"], d["split"]) == ("odmd-paper", "test")
+
+
+def test_compare_files_names_the_problems_of_both(data: Path, tmp_path: Path) -> None:
+    a = tmp_path / "a.csv"
+    a.write_text("split,set,index,depth\ntest,normal,0,x\n")
+    b = tmp_path / "b.csv"
+    b.write_text("split,set,index\n")
+    with pytest.raises(ValidationError) as e:
+        compare_files(a, b, benchmark="odmd-paper")
+    assert any(p.startswith("A (") and "depth is not a number" in p for p in e.value.problems)
+    assert any(p.startswith("B (") and "missing column 'depth'" in p for p in e.value.problems)
+
+
+def test_compare_results_refuses_different_splits(data: Path, tmp_path: Path) -> None:
+    ra = evaluate(_preds(tmp_path, "a.csv", 0.1, 1), benchmark="odmd-paper")
+    rb = evaluate(_preds(tmp_path, "b.csv", 0.1, 1, split="val"), benchmark="odmd-paper")
+    with pytest.raises(UsageError, match="cannot be compared"):
+        compare_results(ra, rb)
+
+
+def test_docstring_examples_run() -> None:
+    result = doctest.testmod(compare)
+    assert result.attempted >= 3 and result.failed == 0
