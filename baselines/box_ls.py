@@ -64,15 +64,20 @@ FALLBACKS: tuple[str, ...] = (
 )
 
 
-def solve(sizes: np.ndarray, camera_z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+#: Examples solved per block: small enough for the temporaries to stay in cache.
+_BLOCK = 1024
+
+
+def solve(width: np.ndarray, height: np.ndarray, camera_z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Least-squares depth at the last observation from box sizes and camera ``z``.
 
-    No missing-detection handling: ``sizes`` must already hold a box for every
-    observation (see :func:`predict_report`).
+    No missing-detection handling: every observation must hold a box (see
+    :func:`predict_report`). Inputs may be strided views (``boxes[:, :, 2]``); they are
+    copied block by block, so memory stays bounded and the temporaries stay in cache.
 
     Parameters
     ----------
-    sizes : ndarray of shape (N, n_obs, 2)
+    width, height : ndarray of shape (N, n_obs)
         Box width and height per observation (normalised; any common unit works).
     camera_z : ndarray of shape (N, n_obs)
         Camera ``z`` position per observation, metres; only differences to the last
@@ -85,40 +90,53 @@ def solve(sizes: np.ndarray, camera_z: np.ndarray) -> tuple[np.ndarray, np.ndarr
         ``singular`` is True.
     singular : ndarray of shape (N,), bool
         True where the box sizes are constant to rounding, so that ``A`` is rank
-        deficient.
+        deficient: ``sum(w'^2 + h'^2) <= (2 n_obs eps)^2 sum(w^2 + h^2)``.
+
+    Notes
+    -----
+    With ``w'`` the centred widths (``w - mean(w)``, likewise ``h'``) and
+    ``u = w' w + h' h``, ``Z = sum(u C_Z) / sum(w'^2 + h'^2) - C_Zn``, using
+    ``sum(u) = sum(w'^2 + h'^2)`` so that the camera positions need no shift.
 
     Examples
     --------
     >>> import numpy as np
     >>> cz = np.array([[0.5, 0.2, 0.0]])  # camera z per observation, the last at 0
     >>> w = 0.1 / (1.0 - cz)              # w_k = fx W / Z_k with Z_k = Z_n - C_Zk, Z_n = 1
-    >>> depth, singular = solve(np.stack([w, 2 * w], axis=2), cz)
+    >>> depth, singular = solve(w, 2 * w, cz)
     >>> round(float(depth[0]), 12), bool(singular[0])
     (1.0, False)
     """
-    sizes = np.asarray(sizes, dtype=np.float64)
+    width = np.asarray(width, dtype=np.float64)
+    height = np.asarray(height, dtype=np.float64)
     camera_z = np.asarray(camera_z, dtype=np.float64)
-    n_obs = sizes.shape[1]
-    d = camera_z - camera_z[:, -1:]
-    centred = sizes - sizes.mean(axis=1, keepdims=True)
-    den = np.einsum("ijk,ijk->i", centred, centred)
-    num = np.einsum("ijk,ij->i", centred * sizes, d)
-    scale = np.einsum("ijk,ijk->i", sizes, sizes)
-    singular = den <= (2 * n_obs * np.finfo(np.float64).eps) ** 2 * scale
-    with np.errstate(divide="ignore", invalid="ignore"):
-        depth = num / den
+    n, n_obs = width.shape
+    depth = np.empty(n)
+    singular = np.empty(n, dtype=bool)
+    mean_weights = np.full(n_obs, 1.0 / n_obs)
+    tol = (2 * n_obs * np.finfo(np.float64).eps) ** 2
+    block = max(1, min(_BLOCK, n))
+    w, h, cw, ch = (np.empty((block, n_obs)) for _ in range(4))
+    # Rows whose unused boxes hold NaN or infinity are solved too (and replaced by the
+    # caller), so floating-point warnings are silenced for the whole loop.
+    with np.errstate(all="ignore"):
+        for start in range(0, n, block):
+            stop = min(start + block, n)
+            k = stop - start
+            wk, hk, cwk, chk = w[:k], h[:k], cw[:k], ch[:k]
+            np.copyto(wk, width[start:stop])
+            np.copyto(hk, height[start:stop])
+            mean_w, mean_h = wk @ mean_weights, hk @ mean_weights
+            np.subtract(wk, mean_w[:, None], out=cwk)
+            np.subtract(hk, mean_h[:, None], out=chk)
+            den = np.einsum("ij,ij->i", cwk, cwk) + np.einsum("ij,ij->i", chk, chk)
+            cwk *= wk
+            chk *= hk
+            cwk += chk
+            cz = camera_z[start:stop]
+            depth[start:stop] = np.einsum("ij,ij->i", cwk, cz) / den - cz[:, -1]
+            singular[start:stop] = den <= tol * (n_obs * (mean_w * mean_w + mean_h * mean_h) + den)
     return depth, singular
-
-
-def _filled_boxes(examples: odmd_bench.Examples) -> np.ndarray:
-    """(N, n_obs, 4) boxes with missing ones filled; only rows with a gap are touched."""
-    boxes = examples.boxes
-    gaps = ~examples.detected.all(axis=1)
-    if not gaps.any():
-        return boxes
-    filled = boxes.copy()
-    filled[gaps] = odmd_bench.fill_missing(boxes[gaps], examples.detected[gaps])
-    return filled
 
 
 def predict_report(
@@ -143,14 +161,23 @@ def predict_report(
     fallback_depth = float(fallback_depth)
     if not np.isfinite(fallback_depth):
         raise odmd_bench.UsageError(f"fallback_depth must be finite, got {fallback_depth}")
-    boxes = _filled_boxes(examples)
+    boxes, detected = examples.boxes, examples.detected
     camera_z = examples.camera[:, :, 2]
-    depth, singular = solve(boxes[:, :, 2:4], camera_z)
+    depth, singular = solve(boxes[:, :, 2], boxes[:, :, 3], camera_z)
+    no_detection = np.zeros(len(examples), dtype=bool)
+    single_detection = np.zeros(len(examples), dtype=bool)
+    # Only examples with a missing box need filling (and a second solve).
+    gaps = np.flatnonzero(~detected.all(axis=1))
+    if gaps.size:
+        filled = odmd_bench.fill_missing(boxes[gaps], detected[gaps])
+        depth[gaps], singular[gaps] = solve(filled[:, :, 2], filled[:, :, 3], camera_z[gaps])
+        n_detected = detected[gaps].sum(axis=1)
+        no_detection[gaps] = n_detected == 0
+        single_detection[gaps] = n_detected == 1
 
-    n_detected = examples.detected.sum(axis=1)
     reasons = {
-        "no_detection": n_detected == 0,
-        "single_detection": n_detected == 1,
+        "no_detection": no_detection,
+        "single_detection": single_detection,
         "no_z_motion": (camera_z == camera_z[:, -1:]).all(axis=1),
         "rank_deficient": singular,
         "non_finite": ~np.isfinite(depth),

@@ -105,7 +105,9 @@ def test_box_ls_is_invariant_to_box_scale_and_example_order() -> None:
     depth = box_ls.predict(ex)
     scaled = ex.boxes.copy()
     scaled[:, :, 2:] *= 7.5
-    np.testing.assert_allclose(box_ls.solve(scaled[:, :, 2:], ex.camera[:, :, 2])[0], depth, rtol=1e-12)
+    np.testing.assert_allclose(
+        box_ls.solve(scaled[:, :, 2], scaled[:, :, 3], ex.camera[:, :, 2])[0], depth, rtol=1e-12
+    )
     order = np.random.default_rng(0).permutation(len(ex))
     np.testing.assert_allclose(box_ls.predict(ex.subset(order)), depth[order], rtol=1e-15)
 
@@ -114,7 +116,7 @@ def test_box_ls_does_not_depend_on_where_the_camera_origin_is() -> None:
     ex = odmd_bench.generate(100, perturbation="camera", rng=4)
     shifted = ex.camera.copy()
     shifted[:, :, 2] += 0.25  # the last row is no longer zero: only differences count
-    depth, _ = box_ls.solve(ex.boxes[:, :, 2:], shifted[:, :, 2])
+    depth, _ = box_ls.solve(ex.boxes[:, :, 2], ex.boxes[:, :, 3], shifted[:, :, 2])
     np.testing.assert_allclose(depth, box_ls.predict(ex), rtol=1e-9)
 
 
@@ -152,6 +154,33 @@ def test_box_ls_fallbacks_are_counted_and_never_nan() -> None:
     depth7 = box_ls.predict(ex, fallback_depth=0.7)
     np.testing.assert_array_equal(depth7[1:], 0.7)
     assert depth7[0] == depth[0]
+
+
+@pytest.mark.parametrize("method", METHODS, ids=lambda m: m.__name__)
+def test_garbage_in_missing_boxes_is_never_read(method: ModuleType) -> None:
+    ex = odmd_bench.generate(50, perturbation="both", rng=21)
+    detected = ex.detected.copy()
+    detected[::3, 0] = False
+    detected[1::3, -1] = False
+    detected[::4, 2:9] = False
+    detected[5] = False
+    clean = odmd_bench.Examples(ex.boxes, detected, ex.camera, ex.depth, attrs=ex.attrs)
+    for garbage in (np.nan, np.inf, 0.0, -7.0):
+        boxes = ex.boxes.copy()
+        boxes[~detected] = garbage
+        dirty = odmd_bench.Examples(boxes, detected, ex.camera, ex.depth, attrs=ex.attrs)
+        depth, counts = method.predict_report(dirty)
+        assert np.isfinite(depth).all()
+        np.testing.assert_array_equal(depth, method.predict(clean))
+        assert counts == method.predict_report(clean)[1]
+
+
+@pytest.mark.parametrize("method", METHODS, ids=lambda m: m.__name__)
+def test_no_examples_give_an_empty_array(method: ModuleType) -> None:
+    ex = odmd_bench.generate(3, perturbation="normal", rng=0).subset(slice(0, 0))
+    depth, counts = method.predict_report(ex)
+    assert depth.shape == (0,)
+    assert set(counts.values()) == {0}
 
 
 def test_box_ls_rejects_non_finite_fallback() -> None:
