@@ -1,69 +1,82 @@
 """Robust reprojection: a training-free, CALIBRATED depth estimator (name ``robust``).
 
 Unlike Box_LS and DBox, which never use the camera intrinsics, this method NEEDS them
-(``fx, fy, cx, cy`` and the image size, from the set's attributes or given
-explicitly): it fits the pinhole model of the paper (section 3.1 and the
+(``fx, fy, cx, cy`` and the image size, from the set's attributes or given with
+``intrinsics=``): it fits the pinhole model of the paper (section 3.1 and the
 supplementary "Depth from Motion Parallax") to every box coordinate at once, so that
 optical expansion (``w, h``) and motion parallax (``x, y``) both inform the depth.
+No training, no data beyond the example itself.
 
 Model, per example, in normalised image units (``a = fx / W_I``, ``b = fy / H_I``,
-``u0 = cx / W_I``, ``v0 = cy / H_I``). Unknowns ``theta = (Z, X', Y', s_w, s_h)``: the
-depth ``Z = Z_n`` at the last observation, the object's lateral position at the last
-observation scaled to image units (``X' = a X_n``, ``Y' = b Y_n``) and its size in
-image units at unit depth (``s_w = a W``, ``s_h = b H``). With the camera position
-``C_i`` relative to the last observation (the data's convention, checked on the
-original files: ``Z_i + C_Zi = Z_n`` and ``X_i = X_n - C_Xi``)::
+``u0 = cx / W_I``, ``v0 = cy / H_I``). Unknowns: the depth ``Z = Z_n`` at the last
+observation, the object's lateral position at the last observation in image units
+(``X' = a X_n``, ``Y' = b Y_n``), its size in image units at unit depth
+(``s_w = a W``, ``s_h = b H``), and a correction ``delta_i`` of every camera position
+but the last. With the camera position ``C_i`` relative to the last observation (the
+data's convention, checked on the original files: ``Z_i + C_Zi = Z_n`` and
+``X_i = X_n - C_Xi``) and ``C~_i = C_i + delta_i``::
 
-    Z_i = Z - C_Zi
-    x_i = u0 + (X' - a C_Xi) / Z_i      y_i = v0 + (Y' - b C_Yi) / Z_i
-    w_i = s_w / Z_i                     h_i = s_h / Z_i
+    Z_i = Z - C~_Zi
+    x_i = u0 + (X' - a C~_Xi) / Z_i      y_i = v0 + (Y' - b C~_Yi) / Z_i
+    w_i = s_w / Z_i                      h_i = s_h / Z_i
+
+Objective, per example, for a noise model ``(sigma_box, sigma_camera)``::
+
+    sum_i rho(|r_i|^2 / sigma_box^2) + |delta|^2 / sigma_camera^2
+
+with ``r_i`` the four residuals (observed minus projected box) of observation ``i``
+and ``rho`` a robust loss (Cauchy by default, scale ``loss_scale``) applied per
+observation: a wrong detection corrupts all four numbers of one observation, so whole
+observations are down-weighted.
 
 Estimation:
 
-1. Linear start. Multiplying each equation by ``Z_i`` gives equations linear in
-   ``theta`` (Box_LS's expansion rows plus the parallax rows
-   ``(x_i - u0) Z - X' = (x_i - u0) C_Zi - a C_Xi``). The four offsets
-   ``X', Y', s_w, s_h`` are eliminated in closed form, which leaves one weighted
-   least-squares ratio for ``Z``; a few iteratively reweighted rounds (Cauchy
-   weights per observation) make it robust to a wrong box.
-2. Robust Gauss-Newton (IRLS) on the reprojection residuals ``r_i`` (4 per detected
-   observation). The camera-position errors are nuisance parameters with a Gaussian
-   prior ``N(0, sigma_camera^2)`` per axis at every observation but the last (whose
-   position is zero by definition); they are marginalised in closed form (the
-   Schur complement of their block is a per-observation covariance
-   ``Sigma_i = B_i + J_C,i sigma_camera^2 J_C,i^T``, box noise ``B_i`` diagonal with
-   ``sigma_box^2 + (rel_box * size)^2``). Each observation gets the weight of a
-   robust loss (Cauchy, Huber or soft-L1, scale ``loss_scale``) of its Mahalanobis
-   distance ``r_i^T Sigma_i^-1 r_i``: a wrong detection corrupts all four numbers of
-   one observation, so observations, not coordinates, are down-weighted.
-   The 5 x 5 normal equations of all examples are solved at once
-   (``np.linalg.solve`` on stacked matrices) with Levenberg-Marquardt damping and a
-   vectorised accept/reject of each step; there is no Python loop over examples.
-3. Bounds: ``Z`` stays above ``max_i C_Zi + min_depth`` (the object in front of the
-   camera at every used observation) and the sizes positive.
-4. Fallbacks, counted in :func:`predict_report`: if the fit does not give a finite
-   depth inside the bound, or ends with a larger robust cost than its start, the
-   linear start is returned (``fit_failed``); an example with fewer than two usable
-   observations gets depth 0, as Box_LS does (``too_few_detections``).
+1. Linear start. Multiplying each equation by ``Z_i`` makes it linear (Box_LS's
+   expansion rows plus the parallax rows ``(x_i - u0) Z - X' = (x_i - u0) C_Zi -
+   a C_Xi``). The four offsets are eliminated in closed form, leaving one weighted
+   least-squares ratio for ``Z``; a few rounds of Cauchy reweighting per observation
+   make it robust to a wrong box.
+2. Robust Levenberg-Marquardt (IRLS). Each step solves the joint Gauss-Newton system
+   of ``(Z, X', Y', s_w, s_h)`` and all camera corrections, with the corrections
+   eliminated in closed form (their Schur complement turns each observation's
+   covariance into ``sigma_box^2 / w_i + J_delta P J_delta^T``, a diagonal plus a
+   rank-one matrix, inverted by Sherman-Morrison), so only a 5 x 5 system per
+   example remains; the systems of all examples are solved at once with
+   ``np.linalg.solve`` on stacked matrices. A step is kept only where it lowers the
+   objective; examples leave the loop when their steps vanish. No Python loop runs
+   over examples.
+3. Noise model per example. The fit runs for each noise model of
+   ``params.noise_models`` (by default one that trusts the boxes and doubts the camera
+   positions, and one the other way round) and keeps, per example, the one with the
+   best approximate marginal likelihood: the final objective plus
+   ``sum_i log det Sigma_i`` plus the model's ``penalty`` (a prior log-odds, chosen on
+   val).
+4. Bounds: ``Z`` stays above ``max_i C~_Zi + min_depth``, so the object is in front of
+   the camera at every used observation.
+5. Fallbacks, counted by :func:`predict_report`: where no fit gives a finite depth
+   inside the bound, the linear start is returned (``fit_failed``); an example with
+   fewer than two usable observations gets depth 0, as Box_LS does
+   (``too_few_detections``).
 
 Missing detections (``detected`` False) are left out of the fit (``missing="omit"``,
-the default, chosen on val); ``missing="fill"`` applies the package's shared rule
+the default: a box copied from another observation would sit at the wrong camera
+position); ``missing="fill"`` applies the package's shared rule
 (:func:`odmd_bench.fill_missing`) instead.
 
 Sets without intrinsics (the ODMS-detection sets) raise :class:`~odmd_bench.DataError`
-with ``mode="full"`` (the default) unless intrinsics are given (``intrinsics=``).
-``mode="scale"`` fits ``w`` and ``h`` only (``Z, s_w, s_h``): it needs no intrinsics,
-so it is a robust, nonlinear, uncalibrated counterpart of Box_LS, and it is what this
-method does on ODMS-detection (whose camera moves along ``z`` only, so parallax would
-carry no information anyway).
+with ``mode="full"`` (the default) unless ``intrinsics=`` is given. ``mode="scale"``
+fits ``w`` and ``h`` only (unknowns ``Z, s_w, s_h`` and the z corrections): it needs
+no intrinsics, so it is a robust, nonlinear, uncalibrated counterpart of Box_LS. It is
+what to use on ODMS-detection, whose camera moves along ``z`` only, so that lateral
+parallax carries no information there anyway.
 
 Hyperparameters (:data:`DEFAULT_PARAMS`) were chosen on the ``val`` sets only by
-``python -m baselines.robust_search`` (see that module).
+``python -m baselines.robust_search`` (see that module for the grid and the command).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
@@ -72,61 +85,87 @@ from odmd_bench import DataError, Examples, UsageError, fill_missing
 
 Mode = Literal["full", "scale"]
 Missing = Literal["omit", "fill"]
-_DEBUG = False
 LOSSES = ("cauchy", "huber", "soft_l1", "linear")
 MODES = ("full", "scale")
 MISSING = ("omit", "fill")
 
 
 @dataclass(frozen=True)
+class NoiseModel:
+    """One hypothesis about an example's noise.
+
+    Attributes:
+        sigma_box: standard deviation of every box coordinate, normalised image units.
+        sigma_camera: prior standard deviation of each camera-position coordinate at
+            every observation but the last, metres.
+        penalty: added to this model's criterion (a prior log-odds against it).
+    """
+
+    sigma_box: float
+    sigma_camera: float
+    penalty: float = 0.0
+
+
+@dataclass(frozen=True)
 class RobustParams:
-    """Hyperparameters of the robust fit (chosen on val; see :mod:`baselines.robust_search`).
+    """Hyperparameters of the robust fit (chosen on val by :mod:`baselines.robust_search`).
 
     Attributes:
         loss: ``"cauchy"``, ``"huber"``, ``"soft_l1"`` or ``"linear"`` (plain least squares).
-        loss_scale: scale ``c`` of the loss on the Mahalanobis distance (in standard
-            deviations): Cauchy weight ``1 / (1 + d^2 / c^2)``.
-        sigma_box: absolute standard deviation of every box coordinate (normalised units).
-        rel_box: standard deviation relative to the box size (``w`` for ``x, w``;
-            ``h`` for ``y, h``), added in quadrature to ``sigma_box``.
-        sigma_camera: prior standard deviation of each camera-position coordinate (m)
-            at every observation but the last.
-        iterations: Gauss-Newton iterations (fixed count; converged examples stay put).
+        loss_scale: scale ``c`` of the loss, in box-noise standard deviations: the Cauchy
+            weight of an observation is ``1 / (1 + |r|^2 / (c sigma_box)^2)``.
+        noise_models: the noise models fitted; each example keeps the best (see the
+            module docstring).
+        iterations: most Levenberg-Marquardt iterations.
+        tolerance: an example stops when no unknown moves by more than this.
         linear_iterations: reweighting rounds of the linear start.
-        min_depth: the object's smallest allowed depth at any observation (m).
+        min_depth: the object's smallest allowed depth at any observation, metres.
     """
 
     loss: str = "cauchy"
-    loss_scale: float = 3.0
-    sigma_box: float = 1e-3
-    rel_box: float = 0.0
-    sigma_camera: float = 0.01
-    iterations: int = 20
-    linear_iterations: int = 5
+    loss_scale: float = 2.0
+    noise_models: tuple[NoiseModel, ...] = field(
+        default_factory=lambda: (NoiseModel(2e-4, 0.02, 0.0), NoiseModel(3e-4, 0.005, 40.0))
+    )
+    iterations: int = 30
+    tolerance: float = 1e-9
+    linear_iterations: int = 3
     min_depth: float = 1e-3
 
     def __post_init__(self) -> None:
         problems = []
         if self.loss not in LOSSES:
             problems.append(f"loss: {self.loss!r} is not one of {', '.join(LOSSES)}")
-        for name in ("loss_scale", "sigma_box", "min_depth"):
+        for name in ("loss_scale", "tolerance", "min_depth"):
             v = getattr(self, name)
             if not (isinstance(v, int | float) and np.isfinite(v) and v > 0):
                 problems.append(f"{name}: expected a positive number, got {v!r}")
-        for name in ("rel_box", "sigma_camera"):
-            v = getattr(self, name)
-            if not (isinstance(v, int | float) and np.isfinite(v) and v >= 0):
-                problems.append(f"{name}: expected a number >= 0, got {v!r}")
         for name in ("iterations", "linear_iterations"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < 0:
                 problems.append(f"{name}: expected an integer >= 0, got {v!r}")
+        if not self.noise_models:
+            problems.append("noise_models: expected at least one NoiseModel")
+        for i, nm in enumerate(self.noise_models):
+            if not isinstance(nm, NoiseModel):
+                problems.append(f"noise_models[{i}]: expected a NoiseModel, got {nm!r}")
+                continue
+            if not (np.isfinite(nm.sigma_box) and nm.sigma_box > 0):
+                problems.append(f"noise_models[{i}].sigma_box: expected a positive number, got {nm.sigma_box!r}")
+            if not (np.isfinite(nm.sigma_camera) and nm.sigma_camera >= 0):
+                problems.append(
+                    f"noise_models[{i}].sigma_camera: expected a number >= 0, got {nm.sigma_camera!r}"
+                )
+            if not np.isfinite(nm.penalty):
+                problems.append(f"noise_models[{i}].penalty: expected a finite number, got {nm.penalty!r}")
         if problems:
             raise UsageError("invalid robust-method parameters", problems)
 
 
 #: Chosen on the val sets by ``python -m baselines.robust_search`` (never on test).
 DEFAULT_PARAMS = RobustParams()
+
+Intrinsics = tuple[float, float, float, float, float, float]
 
 
 def predict(
@@ -135,7 +174,7 @@ def predict(
     *,
     mode: Mode = "full",
     missing: Missing = "omit",
-    intrinsics: tuple[float, float, float, float, float, float] | None = None,
+    intrinsics: Intrinsics | None = None,
 ) -> np.ndarray:
     """Depth ``Z_n`` of every example, metres.
 
@@ -145,7 +184,7 @@ def predict(
         mode: ``"full"`` (calibrated: all four box coordinates) or ``"scale"``
             (``w, h`` only; needs no intrinsics).
         missing: ``"omit"`` missing detections or ``"fill"`` them by the shared rule.
-        intrinsics: ``(fx, fy, cx, cy, image_width, image_height)`` in pixels, to use
+        intrinsics: ``(fx, fy, cx, cy, image_width, image_height)`` in pixels, used
             instead of the set's own.
 
     Returns:
@@ -153,6 +192,12 @@ def predict(
 
     Raises:
         DataError: ``mode="full"`` on a set without intrinsics and none given.
+
+    Example:
+        >>> import odmd_bench
+        >>> ex = odmd_bench.generate(64, perturbation="normal", rng=0)
+        >>> bool(np.allclose(predict(ex), ex.depth, rtol=1e-9))
+        True
     """
     return predict_report(examples, params, mode=mode, missing=missing, intrinsics=intrinsics)[0]
 
@@ -163,34 +208,36 @@ def predict_report(
     *,
     mode: Mode = "full",
     missing: Missing = "omit",
-    intrinsics: tuple[float, float, float, float, float, float] | None = None,
+    intrinsics: Intrinsics | None = None,
 ) -> tuple[np.ndarray, dict[str, int]]:
     """Like :func:`predict`, also returning the counted fallbacks.
 
     Returns:
         ``(depths (N,), counts)`` with ``counts`` = ``{"fit_failed": k,
-        "too_few_detections": m, "n": N}``.
+        "too_few_detections": m, "n": N}`` plus, per noise model ``j``, how many
+        examples kept it (``"noise_model_j"``).
     """
     if mode not in MODES:
         raise UsageError(f"mode {mode!r} is not one of {', '.join(MODES)}")
     if missing not in MISSING:
         raise UsageError(f"missing {missing!r} is not one of {', '.join(MISSING)}")
+    cam_model: tuple[float, float, float, float] | None = None
     if mode == "full":
         if intrinsics is None:
             try:
                 intrinsics = examples.intrinsics()
             except DataError as e:
                 raise DataError(
-                    e.message + "; the robust method is calibrated: give intrinsics=... "
-                    "(CLI: --intrinsics) or use mode='scale' (box sizes only, no intrinsics)",
+                    e.message + "; the robust method is calibrated: give intrinsics="
+                    "(fx, fy, cx, cy, width, height) or use mode='scale' (box sizes only)",
                     e.problems,
                 ) from None
+        if len(intrinsics) != 6 or not all(np.isfinite(float(v)) for v in intrinsics):
+            raise UsageError(f"intrinsics must be 6 finite numbers (fx, fy, cx, cy, width, height), got {intrinsics}")
         fx, fy, cx, cy, width, height = (float(v) for v in intrinsics)
         if not (fx > 0 and fy > 0 and width > 0 and height > 0):
             raise UsageError(f"intrinsics must have positive fx, fy and image size, got {intrinsics}")
-        cam_model: tuple[float, float, float, float] | None = (fx / width, fy / height, cx / width, cy / height)
-    else:
-        cam_model = None
+        cam_model = (fx / width, fy / height, cx / width, cy / height)
 
     boxes = np.asarray(examples.boxes, dtype=np.float64)
     detected = np.asarray(examples.detected, dtype=bool)
@@ -200,7 +247,9 @@ def predict_report(
     else:
         use = detected
     usable = use & np.isfinite(boxes).all(axis=2) & (boxes[:, :, 2] > 0) & (boxes[:, :, 3] > 0)
-    return fit(boxes, usable, np.asarray(examples.camera, dtype=np.float64), cam_model, params)
+    camera = np.asarray(examples.camera, dtype=np.float64)
+    usable = usable & np.isfinite(camera).all(axis=2)
+    return fit(boxes, usable, camera, cam_model, params)
 
 
 def fit(
@@ -225,40 +274,50 @@ def fit(
     """
     n = boxes.shape[0]
     enough = usable.sum(axis=1) >= 2
-    prob = _Problem.build(boxes, usable, camera, cam_model, params)
-    z0 = _linear_start(prob, params)
-    depth = z0
-    failed = np.zeros(n, dtype=bool)
+    base = _Problem.build(boxes, usable, camera, cam_model, params.min_depth)
+    z0 = _linear_start(base, params)
+    depth = z0.copy()
+    best = np.full(n, np.inf)
+    chosen = np.full(n, -1)
     if params.iterations > 0:
-        z, cost_end, cost_start = _gauss_newton(prob, z0, params)
-        ok = np.isfinite(z) & (z >= prob.z_low - 1e-12) & np.isfinite(cost_end) & (cost_end <= cost_start)
-        failed = enough & ~ok
-        depth = np.where(ok, z, z0)
+        for j, nm in enumerate(params.noise_models):
+            z, crit = _gauss_newton(base, z0, nm, params)
+            crit = crit + nm.penalty
+            ok = np.isfinite(z) & (z >= base.z_low) & np.isfinite(crit)
+            take = ok & (crit < best)
+            depth = np.where(take, z, depth)
+            best = np.where(take, crit, best)
+            chosen = np.where(take, j, chosen)
+        failed = enough & (chosen < 0)
+    else:
+        failed = np.zeros(n, dtype=bool)
     depth = np.where(enough, depth, 0.0)
     counts = {
         "fit_failed": int(failed.sum()),
         "too_few_detections": int((~enough).sum()),
         "n": int(n),
     }
+    if params.iterations > 0:
+        for j in range(len(params.noise_models)):
+            counts[f"noise_model_{j}"] = int((enough & (chosen == j)).sum())
     return depth, counts
 
 
 @dataclass(frozen=True)
 class _Problem:
-    """The arrays of a fit, one (N, n_obs) array per box coordinate in use.
+    """The arrays of a fit, observations first: every array is (n_obs, N).
 
-    ``g[c]`` is coordinate ``c`` centred on the principal point (``x - u0``, ``y - v0``,
-    ``w``, ``h``), zero where unused; ``k[c]`` the offset the camera's lateral motion
-    adds (``-a C_X`` for x, ``-b C_Y`` for y, 0 for sizes); ``beta[c]`` the box-noise
-    variance; ``dcam[c]`` the scale of the lateral camera-noise term (``a^2``, ``b^2``,
-    0, 0). ``coords`` lists the coordinates in use (all four, or ``w, h``).
+    ``g[c]`` is box coordinate ``c`` centred on the principal point (``x - u0``,
+    ``y - v0``, ``w``, ``h``), zero where unused; ``k[c]`` the offset the camera's
+    lateral motion adds (``-a C_X``, ``-b C_Y``, 0, 0); ``coords`` the coordinates in
+    use (all four, or ``w, h``); ``m`` 1.0 where an observation is used; ``cam`` (3,
+    n_obs, N); ``z_low`` (N,) the smallest depth that keeps the object in front of
+    the uncorrected cameras.
     """
 
     coords: tuple[int, ...]
     g: tuple[np.ndarray, ...]
     k: tuple[np.ndarray, ...]
-    beta: tuple[np.ndarray, ...]
-    dcam: tuple[float, ...]
     m: np.ndarray
     cam: np.ndarray
     z_low: np.ndarray
@@ -272,59 +331,53 @@ class _Problem:
         usable: np.ndarray,
         camera: np.ndarray,
         cam_model: tuple[float, float, float, float] | None,
-        params: RobustParams,
+        min_depth: float,
     ) -> _Problem:
         a, b, u0, v0 = cam_model if cam_model is not None else (0.0, 0.0, 0.0, 0.0)
         coords = (0, 1, 2, 3) if cam_model is not None else (2, 3)
+        use = usable.T
         centre = (u0, v0, 0.0, 0.0)
-        g = tuple(np.where(usable, boxes[:, :, c] - centre[c], 0.0) for c in range(4))
-        zero = np.zeros(usable.shape)
-        k = (-a * camera[:, :, 0], -b * camera[:, :, 1], zero, zero)
-        sizes = (g[2], g[3], g[2], g[3])
-        beta = tuple(params.sigma_box**2 + (params.rel_box * sizes[c]) ** 2 for c in range(4))
-        cam = np.moveaxis(camera, 2, 0).copy()  # (3, N, n)
-        z_low = np.max(np.where(usable, cam[2], -np.inf), axis=1) + params.min_depth
-        z_low = np.where(np.isfinite(z_low), z_low, params.min_depth)
-        return cls(coords, g, k, beta, (a * a, b * b, 0.0, 0.0), usable.astype(np.float64), cam, z_low, a, b)
+        g = tuple(np.where(use, boxes[:, :, c].T - centre[c], 0.0) for c in range(4))
+        cam = np.where(use[None], np.moveaxis(camera, 2, 0).transpose(0, 2, 1), 0.0)  # (3, n, N)
+        zero = np.zeros(use.shape)
+        k = (-a * cam[0], -b * cam[1], zero, zero)
+        z_low = np.max(np.where(use, cam[2], -np.inf), axis=0) + min_depth
+        z_low = np.where(np.isfinite(z_low), z_low, min_depth)
+        return cls(coords, g, k, use.astype(np.float64), cam, z_low, a, b)
 
-    def take(self, idx: np.ndarray) -> _Problem:
-        """The problem restricted to the examples ``idx``."""
+    def take(self, keep: np.ndarray) -> _Problem:
+        """The problem restricted to the examples where ``keep`` (N,) is True."""
         return _Problem(
             self.coords,
-            tuple(x[idx] for x in self.g),
-            tuple(x[idx] for x in self.k),
-            tuple(x[idx] for x in self.beta),
-            self.dcam,
-            self.m[idx],
-            self.cam[:, idx],
-            self.z_low[idx],
+            tuple(x[:, keep] for x in self.g),
+            tuple(x[:, keep] for x in self.k),
+            self.m[:, keep],
+            self.cam[:, :, keep],
+            self.z_low[keep],
             self.a,
             self.b,
         )
 
 
-def _weights(s: np.ndarray, loss: str, scale: float) -> np.ndarray:
-    """IRLS weights ``rho'(s)`` for squared Mahalanobis distances ``s`` (any shape)."""
-    u = s / scale**2
+def _weights(s: np.ndarray, loss: str, c2: float) -> np.ndarray:
+    """IRLS weights ``rho'(s)`` for squared distances ``s``; ``c2`` the squared loss scale."""
     if loss == "cauchy":
-        return 1.0 / (1.0 + u)
+        return 1.0 / (1.0 + s / c2)
     if loss == "soft_l1":
-        return 1.0 / np.sqrt(1.0 + u)
+        return 1.0 / np.sqrt(1.0 + s / c2)
     if loss == "huber":
-        return np.minimum(1.0, 1.0 / np.sqrt(np.maximum(u, 1e-300)))
+        return np.minimum(1.0, np.sqrt(c2 / np.maximum(s, 1e-300)))
     return np.ones_like(s)
 
 
-def _rho(s: np.ndarray, loss: str, scale: float) -> np.ndarray:
-    """The robust loss of squared Mahalanobis distances ``s`` (``rho(s) = s`` near 0)."""
-    c2 = scale**2
-    u = s / c2
+def _rho(s: np.ndarray, loss: str, c2: float) -> np.ndarray:
+    """The robust loss of squared distances ``s`` (``rho(s) ~ s`` near 0)."""
     if loss == "cauchy":
-        return c2 * np.log1p(u)
+        return c2 * np.log1p(s / c2)
     if loss == "soft_l1":
-        return 2.0 * c2 * (np.sqrt(1.0 + u) - 1.0)
+        return 2.0 * c2 * (np.sqrt(1.0 + s / c2) - 1.0)
     if loss == "huber":
-        return np.where(u <= 1.0, s, c2 * (2.0 * np.sqrt(u) - 1.0))
+        return np.where(s <= c2, s, 2.0 * np.sqrt(c2 * s) - c2)
     return s
 
 
@@ -333,99 +386,98 @@ def _linear_start(prob: _Problem, params: RobustParams) -> np.ndarray:
 
     For per-observation weights ``v_i``, eliminating the offsets ``t_c`` leaves
     ``Z = sum v (g - g_bar)(d - d_bar) / sum v (g - g_bar)^2`` with ``d = g C_Z + k``
-    (sums over observations and coordinates). Then Cauchy weights of each
-    observation's residual (in image units, against the example's median residual)
-    and again. Returns (N,) depths, at least ``z_low``.
+    (sums over observations and coordinates). Each round then gives every observation
+    a Cauchy weight of its residual (image units) against the example's median
+    residual. Returns (N,) depths, at least ``z_low``.
     """
     cz = prob.cam[2]
     v = prob.m
     z = prob.z_low
-    d = {c: prob.g[c] * cz + prob.k[c] for c in prob.coords}
+    d = [prob.g[c] * cz + prob.k[c] for c in prob.coords]
+    g = [prob.g[c] for c in prob.coords]
     for it in range(params.linear_iterations + 1):
-        vs = np.maximum(v.sum(axis=1, keepdims=True), 1e-300)
-        num = np.zeros(v.shape[0])
-        den = np.zeros(v.shape[0])
-        gc, dc = {}, {}
-        for c in prob.coords:
-            gc[c] = prob.g[c] - (v * prob.g[c]).sum(axis=1, keepdims=True) / vs
-            dc[c] = d[c] - (v * d[c]).sum(axis=1, keepdims=True) / vs
-            num += (v * gc[c] * dc[c]).sum(axis=1)
-            den += (v * gc[c] * gc[c]).sum(axis=1)
+        vs = np.maximum(v.sum(axis=0), 1e-300)
+        num = np.zeros(v.shape[1])
+        den = np.zeros(v.shape[1])
+        gc, dc = [], []
+        for gj, dj in zip(g, d, strict=True):
+            gcj = gj - (v * gj).sum(axis=0) / vs
+            dcj = dj - (v * dj).sum(axis=0) / vs
+            num += (v * gcj * dcj).sum(axis=0)
+            den += (v * gcj * gcj).sum(axis=0)
+            gc.append(gcj)
+            dc.append(dcj)
         with np.errstate(divide="ignore", invalid="ignore"):
             z_new = num / den
         z = np.where(np.isfinite(z_new), np.maximum(z_new, prob.z_low), prob.z_low)
         if it == params.linear_iterations:
             break
-        zi = np.maximum(z[:, None] - cz, params.min_depth)
-        r2 = sum(((gc[c] * z[:, None] - dc[c]) / zi) ** 2 for c in prob.coords)
-        assert isinstance(r2, np.ndarray)
-        scale2 = np.maximum(_masked_median(r2, prob.m > 0), len(prob.coords) * params.sigma_box**2)
-        v = prob.m * _weights(r2 / scale2[:, None], "cauchy", params.loss_scale)
+        zi = np.maximum(z - cz, params.min_depth)
+        r2 = np.zeros(cz.shape)
+        for gcj, dcj in zip(gc, dc, strict=True):
+            r2 += ((gcj * z - dcj) / zi) ** 2
+        scale2 = np.maximum(_masked_median(r2, prob.m > 0), 1e-30)
+        v = prob.m * _weights(r2 / scale2, "cauchy", params.loss_scale**2)
     return z
 
 
 def _masked_median(x: np.ndarray, mask: np.ndarray) -> np.ndarray:
-    """Median of ``x`` (N, n) over ``mask`` per row (0 where the mask is empty)."""
-    filled = np.where(mask, x, np.inf)
-    cnt = mask.sum(axis=1)
-    srt = np.sort(filled, axis=1)
-    lo = np.take_along_axis(srt, np.maximum((cnt - 1) // 2, 0)[:, None], axis=1)[:, 0]
-    hi = np.take_along_axis(srt, np.maximum(cnt // 2, 0)[:, None], axis=1)[:, 0]
+    """Median over axis 0 of ``x`` (n, N) where ``mask``; 0 where a column has none."""
+    cnt = mask.sum(axis=0)
+    srt = np.sort(np.where(mask, x, np.inf), axis=0)
+    lo = np.take_along_axis(srt, np.maximum((cnt - 1) // 2, 0)[None], axis=0)[0]
+    hi = np.take_along_axis(srt, np.maximum(cnt // 2, 0)[None], axis=0)[0]
     return np.where(cnt > 0, 0.5 * (lo + hi), 0.0)
 
 
 def _offsets(prob: _Problem, z: np.ndarray) -> np.ndarray:
-    """(len(coords), N) offsets ``t_c`` that best fit ``g_ic Z_i = t_c + k_ic`` for depths ``z``."""
-    zi = z[:, None] - prob.cam[2]
-    msum = np.maximum(prob.m.sum(axis=1), 1.0)
-    return np.stack([(prob.m * (prob.g[c] * zi - prob.k[c])).sum(axis=1) / msum for c in prob.coords])
+    """(nc, N) offsets ``t_c`` that best fit ``g_ic Z_i = t_c + k_ic`` for depths ``z`` (N,)."""
+    zi = z - prob.cam[2]
+    msum = np.maximum(prob.m.sum(axis=0), 1.0)
+    return np.stack([(prob.m * (prob.g[c] * zi - prob.k[c])).sum(axis=0) / msum for c in prob.coords])
 
 
 def _gauss_newton(
-    prob: _Problem, z0: np.ndarray, params: RobustParams
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Robust Levenberg-Marquardt on the reprojection residuals, all examples at once.
+    prob: _Problem, z0: np.ndarray, noise: NoiseModel, params: RobustParams
+) -> tuple[np.ndarray, np.ndarray]:
+    """Robust Levenberg-Marquardt for one noise model, all examples at once.
 
-    Unknowns per example: ``Z``, the offsets ``t_c`` of the coordinates in use
-    (``X', Y', s_w, s_h``) and camera corrections ``delta`` (3, n_obs) with the prior
-    ``N(0, sigma_camera^2)`` (none at the last observation, which is zero by
-    definition). Objective: ``sum_i m_i rho(r_i^T B_i^-1 r_i) + |delta|^2 /
-    sigma_camera^2``, with ``B_i`` the box-noise variances and ``r_i`` the residuals at
-    the corrected camera positions. Each step solves the joint Gauss-Newton system
-    with ``delta`` eliminated in closed form: the Schur complement is a small system in
-    ``(Z, t)`` whose per-observation covariance ``B_i / w_i + J_delta P J_delta^T``
-    (``w_i`` the IRLS weight) is a diagonal plus a rank-one term, inverted by
-    Sherman-Morrison; ``delta`` follows from the step. Damping acts on ``(Z, t)``; a
-    step is kept only where it lowers the objective; examples leave the loop once
-    their steps vanish.
+    Unknowns per example: ``theta = (Z, t)`` with ``t`` the offsets of the coordinates
+    in use (``X', Y', s_w, s_h``) and the camera corrections ``delta`` (3, n_obs).
+    See the module docstring for the objective and the step.
 
-    Returns ``(depth (N,), final objective (N,), starting objective (N,))``.
+    Returns ``(depth (N,), criterion (N,))``: the criterion is the final objective plus
+    ``sum_i log det Sigma_i`` (an approximate negative log marginal likelihood, up to
+    constants shared by all noise models).
     """
-    n, n_obs = prob.m.shape
+    n_obs, n = prob.m.shape
     cs = prob.coords
     nc = len(cs)
-    cam_var = np.full(n_obs, params.sigma_camera**2)
-    cam_var[-1] = 0.0
-    inv_cam_var = np.divide(1.0, cam_var, out=np.zeros(n_obs), where=cam_var > 0)
+    var_box = noise.sigma_box**2
+    c2 = params.loss_scale**2
+    cam_var = np.full((n_obs, 1), noise.sigma_camera**2)
+    cam_var[-1] = 0.0  # the last position is zero by definition
+    inv_cam_var = np.divide(1.0, cam_var, out=np.zeros_like(cam_var), where=cam_var > 0)
+    dcam = {0: prob.a**2, 1: prob.b**2, 2: 0.0, 3: 0.0}
+    eye = np.eye(1 + nc)
 
     theta = np.concatenate([z0[None], _offsets(prob, z0)])  # (1 + nc, N)
-    delta = np.zeros((3, n, n_obs))
+    delta = np.zeros((3, n_obs, n))
     out_theta = theta.copy()
-    pr = prob
-    state = _evaluate(pr, theta, delta, params, inv_cam_var)
-    cost_start = state[0].copy()
-    out_cost = cost_start.copy()
+    out_delta = delta.copy()
+    out_cost = np.empty(n)
     ids = np.arange(n)
+    pr = prob
+    state = _evaluate(pr, theta, delta, var_box, c2, params, inv_cam_var)
     lam = np.full(n, 1e-4)
-    diag = np.eye(1 + nc, dtype=bool)
     for _ in range(params.iterations):
         cost, zi, p, r, s = state
-        om = np.maximum(pr.m * _weights(s, params.loss, params.loss_scale), 1e-12)
+        om = np.maximum(pr.m * _weights(s, params.loss, c2), 1e-12)
         iz = 1.0 / zi
         iz2 = iz * iz
         q = cam_var * iz2
-        mdiag = [pr.beta[c] / om + q * pr.dcam[c] for c in cs]
-        u = [p[j] / mdiag[j] for j in range(nc)]
+        inv_md = [1.0 / (var_box / om + q * dcam[c]) for c in cs]
+        u = [p[j] * inv_md[j] for j in range(nc)]
         pu_u = sum(p[j] * u[j] for j in range(nc))
         kappa = q / (1.0 + q * pu_u)
         one_k = 1.0 - kappa * pu_u
@@ -435,31 +487,30 @@ def _gauss_newton(
         for j, c in enumerate(cs):
             extra = p[j] * dz
             if c == 0:
-                extra = extra - prob.a * delta[0] * iz
+                extra -= prob.a * delta[0] * iz
             elif c == 1:
-                extra = extra - prob.b * delta[1] * iz
+                extra -= prob.b * delta[1] * iz
             rt.append(r[j] + extra)
         ru = sum(rt[j] * u[j] for j in range(nc))
-        sr = [rt[j] / mdiag[j] - kappa * ru * u[j] for j in range(nc)]
-        psr = sum(p[j] * sr[j] for j in range(nc))
-        # Normal equations with J_theta = (1/Z_i)[-p, I].
+        sr = [rt[j] * inv_md[j] - kappa * ru * u[j] for j in range(nc)]  # Sigma^-1 r~
+        # Normal equations with J_theta = (1/Z_i)[-p, I] and Sigma^-1 = D^-1 - kappa u u^T.
         h = np.empty((len(ids), 1 + nc, 1 + nc))
         grad = np.empty((len(ids), 1 + nc))
-        h[:, 0, 0] = (iz2 * pu_u * one_k).sum(axis=1)
-        grad[:, 0] = -(iz * psr).sum(axis=1)
+        h[:, 0, 0] = (iz2 * pu_u * one_k).sum(axis=0)
+        grad[:, 0] = -(iz * sum(p[j] * sr[j] for j in range(nc))).sum(axis=0)
         kz = iz2 * kappa
         for j in range(nc):
-            h[:, 0, 1 + j] = h[:, 1 + j, 0] = -(iz2 * u[j] * one_k).sum(axis=1)
-            grad[:, 1 + j] = (iz * sr[j]).sum(axis=1)
-            h[:, 1 + j, 1 + j] = (iz2 / mdiag[j] - kz * u[j] * u[j]).sum(axis=1)
-            for l in range(j + 1, nc):
-                h[:, 1 + j, 1 + l] = h[:, 1 + l, 1 + j] = -(kz * u[j] * u[l]).sum(axis=1)
-        damped = h + (lam[:, None] * (h[:, diag] + 1e-12))[:, :, None] * np.eye(1 + nc)
+            h[:, 0, 1 + j] = h[:, 1 + j, 0] = -(iz2 * u[j] * one_k).sum(axis=0)
+            grad[:, 1 + j] = (iz * sr[j]).sum(axis=0)
+            h[:, 1 + j, 1 + j] = (iz2 * inv_md[j] - kz * u[j] * u[j]).sum(axis=0)
+            for col in range(j + 1, nc):
+                h[:, 1 + j, 1 + col] = h[:, 1 + col, 1 + j] = -(kz * u[j] * u[col]).sum(axis=0)
+        damped = h + (lam[:, None] * (np.diagonal(h, axis1=1, axis2=2) + 1e-12))[:, :, None] * eye
         step = _solve(damped, grad).T  # (1 + nc, Na)
-        # New corrections: eps = P J_delta^T Sigma^-1 (r~ - J_theta step).
-        v = [rt[j] - (step[1 + j][:, None] - p[j] * step[0][:, None]) * iz for j in range(nc)]
+        # New corrections: P J_delta^T Sigma^-1 (r~ - J_theta step).
+        v = [rt[j] - (step[1 + j] - p[j] * step[0]) * iz for j in range(nc)]
         vu = sum(v[j] * u[j] for j in range(nc))
-        sv = [v[j] / mdiag[j] - kappa * vu * u[j] for j in range(nc)]
+        sv = [v[j] * inv_md[j] - kappa * vu * u[j] for j in range(nc)]
         fac = cam_var * iz
         new_delta = np.zeros_like(delta)
         new_delta[2] = fac * sum(p[j] * sv[j] for j in range(nc))
@@ -467,60 +518,78 @@ def _gauss_newton(
             new_delta[0] = -prob.a * fac * sv[0]
             new_delta[1] = -prob.b * fac * sv[1]
         new = theta + step
-        z_floor = np.max(np.where(pr.m > 0, pr.cam[2] + new_delta[2], -np.inf), axis=1) + params.min_depth
+        z_floor = np.max(np.where(pr.m > 0, pr.cam[2] + new_delta[2], -np.inf), axis=0) + params.min_depth
         new[0] = np.maximum(new[0], np.maximum(pr.z_low, z_floor))
-        new_state = _evaluate(pr, new, new_delta, params, inv_cam_var)
+        new_state = _evaluate(pr, new, new_delta, var_box, c2, params, inv_cam_var)
         better = np.isfinite(new_state[0]) & (new_state[0] <= cost)
         theta = np.where(better, new, theta)
-        delta = np.where(better[:, None], new_delta, delta)
-        state = tuple(np.where(better if x.ndim == 1 else better[..., None], y, x) for x, y in zip(state, new_state, strict=True))
+        delta = np.where(better, new_delta, delta)
+        state = tuple(np.where(better, y, x) for x, y in zip(state, new_state, strict=True))
         lam = np.where(better, np.maximum(lam * 0.3, 1e-9), lam * 10.0)
-        tiny = np.abs(step).max(axis=0) <= 1e-10 * (1.0 + np.abs(theta).max(axis=0))
-        done = tiny | (lam > 1e6)
-        out_theta[:, ids] = theta
-        out_cost[ids] = state[0]
+        done = (np.abs(step).max(axis=0) <= params.tolerance) | (lam > 1e6)
         if done.all():
             break
-        if _DEBUG:
-            print(len(ids), int(done.sum()), int(better.sum()))
-        if done.mean() > 0.25:
+        if done.mean() > 0.2:  # drop finished examples from the working set
+            out_theta[:, ids[done]] = theta[:, done]
+            out_delta[:, :, ids[done]] = delta[:, :, done]
             keep = ~done
             ids = ids[keep]
             pr = pr.take(keep)
-            theta, delta, lam = theta[:, keep], delta[:, keep], lam[keep]
-            state = tuple(x[:, keep] if x.ndim == 3 else x[keep] for x in state)
-    return out_theta[0], out_cost, cost_start
+            theta, delta, lam = theta[:, keep], delta[:, :, keep], lam[keep]
+            state = tuple(x[..., keep] for x in state)
+    out_theta[:, ids] = theta
+    out_delta[:, :, ids] = delta
+
+    # Criterion: objective + sum_i log det Sigma_i (Sigma_i = D_i + q_i p_i p_i^T).
+    cost, zi, p, _, _ = _evaluate(prob, out_theta, out_delta, var_box, c2, params, inv_cam_var)
+    q = cam_var / zi**2
+    logdet = np.zeros(zi.shape)
+    quad = np.zeros(zi.shape)
+    for j, c in enumerate(cs):
+        md = var_box + q * dcam[c]
+        logdet += np.log(md)
+        quad += p[j] ** 2 / md
+    logdet += np.log1p(q * quad)
+    out_cost[:] = cost
+    return out_theta[0], out_cost + (prob.m * logdet).sum(axis=0)
 
 
 def _evaluate(
-    prob: _Problem, theta: np.ndarray, delta: np.ndarray, params: RobustParams, inv_cam_var: np.ndarray
+    prob: _Problem,
+    theta: np.ndarray,
+    delta: np.ndarray,
+    var_box: float,
+    c2: float,
+    params: RobustParams,
+    inv_cam_var: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Objective and its pieces at ``theta`` (1 + nc, N) and ``delta`` (3, N, n_obs).
+    """Objective and its pieces at ``theta`` (1 + nc, N) and ``delta`` (3, n_obs, N).
 
-    Returns ``(cost (N,), Z_i (N, n), predictions (nc, N, n), residuals (nc, N, n),
-    squared box-noise Mahalanobis distances (N, n))``.
+    Returns ``(cost (N,), Z_i (n, N), projections (nc, n, N), residuals (nc, n, N),
+    squared normalised residual norms (n, N))``.
     """
-    zi = np.maximum(theta[0][:, None] - prob.cam[2] - delta[2], params.min_depth)
+    zi = np.maximum(theta[0] - prob.cam[2] - delta[2], params.min_depth)
     iz = 1.0 / zi
     p = np.empty((len(prob.coords),) + zi.shape)
     r = np.empty_like(p)
     s = np.zeros(zi.shape)
     for j, c in enumerate(prob.coords):
-        num = theta[1 + j][:, None] + prob.k[c]
+        num = theta[1 + j] + prob.k[c]
         if c == 0:
             num = num - prob.a * delta[0]
         elif c == 1:
             num = num - prob.b * delta[1]
         p[j] = num * iz
         r[j] = (prob.g[c] - p[j]) * prob.m
-        s += r[j] * r[j] / prob.beta[c]
-    prior = ((delta * delta).sum(axis=0) * inv_cam_var).sum(axis=1)
-    cost = (prob.m * _rho(s, params.loss, params.loss_scale)).sum(axis=1) + prior
+        s += r[j] * r[j]
+    s /= var_box
+    prior = ((delta * delta).sum(axis=0) * inv_cam_var).sum(axis=0)
+    cost = (prob.m * _rho(s, params.loss, c2)).sum(axis=0) + prior
     return cost, zi, p, r, s
 
 
 def _solve(h: np.ndarray, grad: np.ndarray) -> np.ndarray:
-    """Solve the stacked systems ``h x = grad`` (N, k, k) (N, k); a singular one gives a zero step."""
+    """Solve the stacked systems ``h x = grad``, (N, k, k) and (N, k); a singular one gives 0."""
     ok = np.isfinite(h).all(axis=(1, 2)) & np.isfinite(grad).all(axis=1)
     hh = np.where(ok[:, None, None], h, np.eye(h.shape[1]))
     gg = np.where(ok[:, None], grad, 0.0)
