@@ -189,11 +189,14 @@ def _rows(text: str) -> tuple[list[tuple[int, list[str]]], str | None]:
     rows: list[tuple[int, list[str]]] = []
     try:
         for record in reader:
-            if all(not c.strip() for c in record):  # blank line, or only separators
-                continue
-            rows.append((reader.line_num, [c.strip() for c in record]))
+            cells = [c.strip() for c in record]
+            if any(cells):  # skip blank lines and lines of separators only
+                rows.append((reader.line_num, cells))
     except csv.Error as e:
-        return rows, f"line {reader.line_num + 1}: not valid CSV ({e})"
+        if "unexpected end of data" in str(e):
+            after = rows[-1][0] if rows else 0
+            return rows, f"not valid CSV: a quote opened after line {after} is never closed"
+        return rows, f"line {max(reader.line_num, 1)}: not valid CSV ({e})"
     return rows, None
 
 
