@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import io
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -226,3 +227,31 @@ def test_evaluate_never_imports_torch(data: Path, tmp_path: Path) -> None:
     done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, check=False)
     assert done.returncode == 0, done.stderr
     assert done.stdout.strip() == "[]"
+
+
+def test_missing_generated_benchmark_is_generated_first(tmp_path: Path) -> None:
+    from odmd_bench.data import manifest
+
+    sizes = {s: manifest("odmd-v1")["splits"]["val"][s]["n"] for s in SETS}
+    p = tmp_path / "ones.csv"
+    write_predictions(p, "val", {s: np.ones(n) for s, n in sizes.items()})
+    env = {**os.environ, "ODMD_BENCH_DATA": str(tmp_path / "fresh")}
+    done = subprocess.run(
+        [
+            sys.executable,
+            "-c",
+            "from odmd_bench.cli import main; main()",
+            "evaluate",
+            str(p),
+            "--format",
+            "json",
+        ],
+        capture_output=True,
+        text=True,
+        env=env,
+        check=False,
+    )
+    assert done.returncode == 0, done.stderr
+    assert "generating odmd-v1 val first" in done.stderr
+    assert json.loads(done.stdout)["benchmark"] == "odmd-v1"
+    assert (tmp_path / "fresh" / "odmd-v1" / "val.h5").exists()

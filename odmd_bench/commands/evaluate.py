@@ -31,7 +31,8 @@ def _warn(warnings: tuple[str, ...] | list[str]) -> None:
     "--per-example",
     type=click.Path(path_type=Path, dir_okay=False),
     default=None,
-    help="Also write each example's prediction, truth, errors and what explains them to this CSV.",
+    help="Also write a CSV with each example's prediction, truth, percent and absolute error, "
+    "number of detected boxes, camera move length and box size.",
 )
 @click.option("--sets", default=None, help=_SETS_HELP)
 def evaluate_command(
@@ -44,8 +45,11 @@ def evaluate_command(
 ) -> None:
     """Validate the predictions CSV PREDS and score it.
 
-    PREDS has the columns split, set, index, depth (CONTRACT section 4). A file with
-    any problem is refused as a whole, with every problem named (exit status 2).
+    PREDS is a CSV file with a header and one row per example: split, set, index
+    (0-based), depth (metres), and optionally benchmark; other columns are ignored,
+    rows may come in any order. A file with any problem is refused as a whole, with
+    every problem named (exit status 2). Zero or negative depths are scored as given,
+    with a warning.
     """
     from odmd_bench.evaluate import evaluate
     from odmd_bench.report import format_result, write_per_example
