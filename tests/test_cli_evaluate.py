@@ -17,6 +17,7 @@ from click.testing import CliRunner
 import odmd_bench
 from odmd_bench.benchmarks import set_file
 from odmd_bench.cli import cli
+from odmd_bench.evaluate import evaluate
 from odmd_bench.io import write_sets
 from odmd_bench.predictions import write_predictions
 from odmd_bench.report import PER_EXAMPLE_COLUMNS
@@ -71,7 +72,7 @@ def test_json_has_the_contract_keys_and_matches_the_library(data: Path, tmp_path
     for s in SETS:
         assert d["sets"][s]["n"] == N[s]
         assert set(d["sets"][s]["percent_error"]) == stats == set(d["sets"][s]["absolute_error"])
-    lib = odmd_bench.evaluate.evaluate(p, benchmark="odmd-paper")
+    lib = evaluate(p, benchmark="odmd-paper")
     assert d["all"]["percent_error_mean"] == lib.all_percent_error_mean  # exact through JSON
     assert d["provenance"]["predictions_sha256"] == lib.provenance["predictions_sha256"]
 
@@ -82,7 +83,7 @@ def test_csv_and_markdown(data: Path, tmp_path: Path) -> None:
     assert code == 0
     table = list(csv.DictReader(io.StringIO(out)))
     assert [r["set"] for r in table] == [*SETS, "All"]
-    lib = odmd_bench.evaluate.evaluate(p, benchmark="odmd-paper")
+    lib = evaluate(p, benchmark="odmd-paper")
     assert float(table[2]["percent_error_max"]) == lib.sets["object"]["percent_error"]["max"]
     assert float(table[-1]["percent_error_mean"]) == lib.all_percent_error_mean
     code, out, _ = run("evaluate", str(p), "--benchmark", "odmd-paper", "--format", "markdown")

@@ -503,3 +503,25 @@ def test_box_ls_on_odmd_paper_test_scores_the_papers_numbers(paper_data_dir: Pat
     negative = {s: int((r.predictions[s] < 0).sum()) for s in r.sets}
     assert negative["object"] == 86
     assert "zero or negative" in r.warnings[0]
+
+
+def test_box_ls_baseline_file_scores_the_papers_numbers(paper_data_dir: Path, tmp_path: Path) -> None:
+    """End to end: the shipped baseline writes the file, the CLI scores it."""
+    import json
+
+    from click.testing import CliRunner
+
+    from odmd_bench.cli import cli
+
+    out = tmp_path / "box_ls.csv"
+    data = ["--benchmark", "odmd-paper", "--data-dir", str(paper_data_dir)]
+    made = CliRunner().invoke(cli, ["baseline", "box-ls", "--split", "test", "-o", str(out), *data])
+    assert made.exit_code == 0, made.output
+    scored = CliRunner().invoke(cli, ["evaluate", str(out), "--format", "json", *data])
+    assert scored.exit_code == 0, scored.output
+    d = json.loads(scored.stdout)
+    means = {s: round(m["percent_error"]["mean"], 2) for s, m in d["sets"].items()}
+    assert means == {"normal": 0.00, "camera": 4.47, "object": 21.60, "robot": 21.23}
+    assert round(d["all"]["percent_error_mean"], 2) == 11.83
+    pe = d["sets"]["object"]["percent_error"]
+    assert (round(pe["median"], 2), round(pe["max"], 2), round(pe["std"], 2)) == (8.90, 158.04, 28.27)
