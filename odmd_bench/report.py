@@ -72,7 +72,7 @@ def format_table(result: EvaluationResult) -> str:
     lines = [_header_line(result), ""]
     pct_block = "percent error (%)".center(5 * w)
     abs_block = "absolute error (m)".center(5 * w)
-    lines.append(" " * (name_w + 7) + pct_block + "  " + abs_block)
+    lines.append((" " * (name_w + 7) + pct_block + "  " + abs_block).rstrip())
     head = f"{'set':<{name_w}} {'n':>6}" + "".join(f"{s:>{w}}" for s in STATS)
     head += "  " + "".join(f"{s:>{w}}" for s in STATS)
     lines.append(head)
