@@ -53,9 +53,9 @@ def cli() -> None:
 
 
 def _register() -> None:
-    from odmd_bench.commands import baseline, data, evaluate
+    from odmd_bench.commands import baseline, data, evaluate, leaderboard
 
-    for module in (data, baseline, evaluate):
+    for module in (data, baseline, evaluate, leaderboard):
         for command in module.COMMANDS:
             cli.add_command(command)
 

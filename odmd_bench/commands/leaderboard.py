@@ -1,0 +1,156 @@
+"""``leaderboard build``, ``leaderboard check`` and ``leaderboard add``."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from odmd_bench.benchmarks import BENCHMARKS, DATA_DIR_ENV, SPLITS
+from odmd_bench.errors import ValidationError
+
+_root_option = click.option(
+    "--root",
+    type=click.Path(file_okay=False, path_type=Path),
+    default=None,
+    help="The leaderboard folder [default: leaderboard/ in the current folder or a parent].",
+)
+_data_option = click.option(
+    "--data-dir",
+    type=click.Path(file_okay=False, path_type=Path),
+    default=None,
+    help=f"Data folder [default: ${DATA_DIR_ENV}, else ~/.local/share/odmd-bench]. "
+    "odmd-v1 is generated there when missing.",
+)
+_original_option = click.option(
+    "--original",
+    type=click.Path(exists=True, file_okay=False, path_type=Path),
+    envvar="ODMD_ORIGINAL",
+    default=None,
+    help="The original ODMD release's data folder (e.g. ../shared/odmd-original), imported into the "
+    "data folder when odmd-paper is missing there [env: ODMD_ORIGINAL].",
+)
+
+
+def _root(root: Path | None) -> Path:
+    from odmd_bench.leaderboard import find_root
+
+    return root if root is not None else find_root()
+
+
+@click.group("leaderboard")
+def leaderboard() -> None:
+    """The verified leaderboard: every row re-scored from committed predictions.
+
+    \b
+    Add a method in three steps:
+      1. odmd-bench baseline ... / your own code  ->  a predictions CSV
+      2. odmd-bench leaderboard add PREDS.csv --method ID --name ... (see --help)
+      3. odmd-bench leaderboard build && odmd-bench leaderboard check
+    """
+
+
+@leaderboard.command("build")
+@_root_option
+@_data_option
+@_original_option
+@click.option("--no-plot", is_flag=True, help="Do not draw leaderboard.png.")
+def build_command(root: Path | None, data_dir: Path | None, original: Path | None, no_plot: bool) -> None:
+    """Re-score every entry and write LEADERBOARD.md, leaderboard.json and leaderboard.png."""
+    from odmd_bench.leaderboard import build, write
+
+    folder = _root(root)
+    built = build(folder, data_dir, original)
+    for line in write(folder, built, plot=not no_plot):
+        click.echo(line)
+    n = sum(len(b.rows) for b in built.boards)
+    click.echo(f"{n} entries on {len(built.boards)} boards; {len(built.reported)} reported results")
+
+
+@leaderboard.command("check")
+@_root_option
+@_data_option
+@_original_option
+def check_command(root: Path | None, data_dir: Path | None, original: Path | None) -> None:
+    """Fail (exit 2) unless every entry is valid and the committed table and JSON are what
+    build writes now; every difference is named (file, row, field, old and new)."""
+    from odmd_bench.leaderboard import check
+
+    folder = _root(root)
+    problems = check(folder, data_dir, original)
+    if problems:
+        raise ValidationError(
+            f"leaderboard check failed ({folder}): {len(problems)} "
+            f"{'problem' if len(problems) == 1 else 'problems'}; fix the entries, or run "
+            "`odmd-bench leaderboard build` and commit LEADERBOARD.md and leaderboard.json",
+            problems,
+        )
+    click.echo(f"leaderboard check passed: {folder} is what build writes, every entry re-scored")
+
+
+@leaderboard.command("add")
+@click.argument("predictions", type=click.Path(exists=True, dir_okay=False, path_type=Path))
+@click.option("--method", required=True, help="Method id, lowercase (the entry folder's name), e.g. dbox.")
+@click.option("--name", required=True, help="Name shown in the table, e.g. DBox_p.")
+@click.option("--description", required=True, help="One or two sentences.")
+@click.option("--paper", required=True, help="Link to the paper, or 'none'.")
+@click.option("--code", required=True, help="Link to the code, or a path in this repository.")
+@click.option("--training-data", required=True, help="What it trained on ('none' for analytical methods).")
+@click.option("--command", "command_", required=True, help="The exact command that produced the predictions.")
+@click.option("--benchmark", required=True, type=click.Choice(list(BENCHMARKS)))
+@click.option("--split", default="test", show_default=True, type=click.Choice(SPLITS))
+@click.option(
+    "--calibrated/--uncalibrated", required=True, help="Whether the method uses the camera intrinsics."
+)
+@click.option("--date", default=None, help="YYYY-MM-DD [default: today].")
+@click.option("--notes", default=None, help="Anything else a reader should know.")
+@click.option("--replace", is_flag=True, help="Overwrite an existing entry.")
+@_root_option
+@_data_option
+@_original_option
+def add_command(
+    predictions: Path,
+    method: str,
+    name: str,
+    description: str,
+    paper: str,
+    code: str,
+    training_data: str,
+    command_: str,
+    benchmark: str,
+    split: str,
+    calibrated: bool,
+    date: str | None,
+    notes: str | None,
+    replace: bool,
+    root: Path | None,
+    data_dir: Path | None,
+    original: Path | None,
+) -> None:
+    """Add the predictions CSV PREDICTIONS as an entry (validated, hashed, compressed)."""
+    from odmd_bench.leaderboard import add_entry
+
+    folder = _root(root)
+    entry = add_entry(
+        folder,
+        predictions,
+        method=method,
+        name=name,
+        description=description,
+        paper=paper,
+        code=code,
+        training_data=training_data,
+        command=command_,
+        benchmark=benchmark,
+        split=split,
+        calibrated=calibrated,
+        date=date,
+        notes=notes,
+        data_dir=data_dir,
+        original=original,
+        replace=replace,
+    )
+    click.echo(f"added {entry.folder}; now run `odmd-bench leaderboard build` and commit the folder")
+
+
+COMMANDS: list[click.Command] = [leaderboard]
