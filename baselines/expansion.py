@@ -31,6 +31,17 @@ Further fallbacks (each example is counted once, in this order of precedence):
 ``non_finite_h``
     ``Z_w`` is finite but ``Z_h`` is not: the estimate is ``Z_w`` alone. (The original
     release would return a non-finite number here; this never happens on its sets.)
+``non_finite``
+    ``combine="lsq"`` only: the combined solution is not finite (for instance a single
+    detected end point copied to the other): ``fallback_depth``.
+
+Opt-in variant ``combine="lsq"``: with ``a_w = 1 - w_n / w_1`` and ``a_h = 1 - h_n / h_1``,
+solve ``a_w Z = a_h Z = C_Z1 - C_Zn`` together in the least-squares sense,
+``Z = (C_Z1 - C_Zn) (a_w + a_h) / (a_w^2 + a_h^2)``, instead of averaging the two
+ratios' solutions, which explodes when one of ``a_w``, ``a_h`` is near 0. Exact on
+noise-free data like the default; on the original sets (val 0.00 / 5.53 / 18.26 /
+25.58, All 12.34, against 36.95 for the mean) it gives test 0.00 / 5.23 / 17.69 /
+25.84, All 12.19.
 
 The output never holds NaN or infinity.
 """
@@ -40,19 +51,20 @@ from __future__ import annotations
 import numpy as np
 
 import odmd_bench
-from baselines.parallax import Fill, endpoint_boxes
+from baselines.parallax import Combine, Fill, check_combine, endpoint_boxes
 
 #: Depth (metres) where the width solution is not finite, as the original release uses.
 DEFAULT_FALLBACK_DEPTH = 1.0
 
 #: Fallback reasons, in order of precedence.
-FALLBACKS: tuple[str, ...] = ("no_detection", "non_finite_w", "non_finite_h")
+FALLBACKS: tuple[str, ...] = ("no_detection", "non_finite_w", "non_finite_h", "non_finite")
 
 
 def predict_report(
     examples: odmd_bench.Examples,
     fill: Fill = "endpoints",
     fallback_depth: float = DEFAULT_FALLBACK_DEPTH,
+    combine: Combine = "mean",
 ) -> tuple[np.ndarray, dict[str, int]]:
     """Two-observation optical-expansion depths and how many examples used each fallback.
 
@@ -64,6 +76,9 @@ def predict_report(
         Missing-box rule (module docstring); ``"endpoints"`` reproduces the paper.
     fallback_depth : float
         Depth (metres) where there is no detection or the width solution is not finite.
+    combine : {"mean", "lsq"}
+        How the width and height solutions are combined (module docstring);
+        ``"mean"`` reproduces the paper.
 
     Returns
     -------
@@ -75,29 +90,36 @@ def predict_report(
     fallback_depth = float(fallback_depth)
     if not np.isfinite(fallback_depth):
         raise odmd_bench.UsageError(f"fallback_depth must be finite, got {fallback_depth}")
+    check_combine(combine)
     boxes, none = endpoint_boxes(examples, fill)
     first, last = boxes[:, 0], boxes[:, 1]
     move_z = examples.camera[:, 0, 2] - examples.camera[:, -1, 2]  # C_Z1 - C_Zn
-    with np.errstate(divide="ignore", invalid="ignore"):
-        z_w = move_z / (1 - last[:, 2] / first[:, 2])
-        z_h = move_z / (1 - last[:, 3] / first[:, 3])
+    counts = dict.fromkeys(FALLBACKS, 0)
+    counts["no_detection"] = int(none.sum())
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        # Z_w = move_z / a_w and Z_h = move_z / a_h (module docstring).
+        a_w = 1 - last[:, 2] / first[:, 2]
+        a_h = 1 - last[:, 3] / first[:, 3]
+        if combine == "lsq":
+            depth = move_z * (a_w + a_h) / (a_w * a_w + a_h * a_h)
+            bad = ~np.isfinite(depth) & ~none
+            counts["non_finite"] = int(bad.sum())
+            return np.where(none | bad, fallback_depth, depth), counts
+        z_w, z_h = move_z / a_w, move_z / a_h
         depth = (z_w + z_h) / 2
     bad_w = ~np.isfinite(z_w)
     bad_h = ~np.isfinite(z_h)
     depth = np.where(bad_h, z_w, depth)
-    counts = {
-        "no_detection": int(none.sum()),
-        "non_finite_w": int((bad_w & ~none).sum()),
-        "non_finite_h": int((bad_h & ~bad_w & ~none).sum()),
-    }
-    depth = np.where(none | bad_w, fallback_depth, depth)
-    return depth, counts
+    counts["non_finite_w"] = int((bad_w & ~none).sum())
+    counts["non_finite_h"] = int((bad_h & ~bad_w & ~none).sum())
+    return np.where(none | bad_w, fallback_depth, depth), counts
 
 
 def predict(
     examples: odmd_bench.Examples,
     fill: Fill = "endpoints",
     fallback_depth: float = DEFAULT_FALLBACK_DEPTH,
+    combine: Combine = "mean",
 ) -> np.ndarray:
     """Two-observation optical-expansion depth at the last observation for every example.
 
@@ -109,6 +131,8 @@ def predict(
         Missing-box rule (module docstring); ``"endpoints"`` reproduces the paper.
     fallback_depth : float
         Depth for the fallbacks of the module docstring (1 m, as the original release).
+    combine : {"mean", "lsq"}
+        ``"mean"`` (the paper) or the opt-in least-squares combination.
 
     Returns
     -------
@@ -122,4 +146,4 @@ def predict(
     >>> bool(abs(predict(ex) - ex.depth).max() < 1e-9)
     True
     """
-    return predict_report(examples, fill, fallback_depth)[0]
+    return predict_report(examples, fill, fallback_depth, combine)[0]

@@ -35,6 +35,19 @@ Further fallbacks (each example is counted once, in this order of precedence):
 ``non_finite_y``
     ``Z_x`` is finite but ``Z_y`` is not: the estimate is ``Z_x`` alone. (The original
     release would return a non-finite number here; this never happens on its sets.)
+``non_finite``
+    ``combine="lsq"`` only: the combined solution is not finite (both denominators 0,
+    for instance a single detected end point copied to the other): ``fallback_depth``.
+
+Opt-in variant ``combine="lsq"``: instead of averaging ``Z_x = N_x / D_x`` and
+``Z_y = N_y / D_y`` (numerators ``N`` = focal length times camera motion, denominators
+``D`` = the scale-corrected change in box position), solve the two equations
+``D_x Z = N_x`` and ``D_y Z = N_y`` together in the least-squares sense,
+``Z = (D_x N_x + D_y N_y) / (D_x^2 + D_y^2)``. The mean is ruined whenever one axis
+has little motion (its ``D`` is near 0 and its ``Z`` explodes); the least-squares
+combination weights each axis by its parallax. Exact on noise-free data like the
+default; on the original sets (chosen on ``val``: 0.00 / 6.70 / 9.27 / 21.58, All
+9.39, against 40.84 for the mean) it gives test 0.00 / 6.93 / 8.72 / 20.69, All 9.08.
 
 The output never holds NaN or infinity.
 
@@ -58,10 +71,19 @@ import odmd_bench
 DEFAULT_FALLBACK_DEPTH = 1.0
 
 #: Fallback reasons, in order of precedence.
-FALLBACKS: tuple[str, ...] = ("no_detection", "non_finite_x", "non_finite_y")
+FALLBACKS: tuple[str, ...] = ("no_detection", "non_finite_x", "non_finite_y", "non_finite")
 
 Fill = Literal["endpoints", "all"]
 FILLS: tuple[str, ...] = ("endpoints", "all")
+
+Combine = Literal["mean", "lsq"]
+COMBINES: tuple[str, ...] = ("mean", "lsq")
+
+
+def check_combine(combine: str) -> None:
+    """Raise :class:`odmd_bench.UsageError` unless ``combine`` is one of :data:`COMBINES`."""
+    if combine not in COMBINES:
+        raise odmd_bench.UsageError(f"unknown combine {combine!r}; expected one of {', '.join(COMBINES)}")
 
 
 def endpoint_boxes(examples: odmd_bench.Examples, fill: Fill = "endpoints") -> tuple[np.ndarray, np.ndarray]:
@@ -101,6 +123,7 @@ def predict_report(
     examples: odmd_bench.Examples,
     fill: Fill = "endpoints",
     fallback_depth: float = DEFAULT_FALLBACK_DEPTH,
+    combine: Combine = "mean",
 ) -> tuple[np.ndarray, dict[str, int]]:
     """Two-observation motion-parallax depths and how many examples used each fallback.
 
@@ -112,6 +135,9 @@ def predict_report(
         Missing-box rule (module docstring); ``"endpoints"`` reproduces the paper.
     fallback_depth : float
         Depth (metres) where there is no detection or the lateral solution is not finite.
+    combine : {"mean", "lsq"}
+        How the lateral and vertical solutions are combined (module docstring);
+        ``"mean"`` reproduces the paper.
 
     Returns
     -------
@@ -128,32 +154,39 @@ def predict_report(
     fallback_depth = float(fallback_depth)
     if not np.isfinite(fallback_depth):
         raise odmd_bench.UsageError(f"fallback_depth must be finite, got {fallback_depth}")
+    check_combine(combine)
     fx, fy, cx, cy, width, height = examples.intrinsics()
     fx, cx, fy, cy = fx / width, cx / width, fy / height, cy / height
     boxes, none = endpoint_boxes(examples, fill)
     first, last = boxes[:, 0], boxes[:, 1]
     move = examples.camera[:, -1] - examples.camera[:, 0]  # C_n - C_1
-    with np.errstate(divide="ignore", invalid="ignore"):
-        z_x = fx * move[:, 0] / ((first[:, 0] - cx) * (last[:, 2] / first[:, 2]) - (last[:, 0] - cx))
-        z_y = fy * move[:, 1] / ((first[:, 1] - cy) * (last[:, 3] / first[:, 3]) - (last[:, 1] - cy))
+    counts = dict.fromkeys(FALLBACKS, 0)
+    counts["no_detection"] = int(none.sum())
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        # Z_x = num_x / den_x and Z_y = num_y / den_y (module docstring).
+        num_x, num_y = fx * move[:, 0], fy * move[:, 1]
+        den_x = (first[:, 0] - cx) * (last[:, 2] / first[:, 2]) - (last[:, 0] - cx)
+        den_y = (first[:, 1] - cy) * (last[:, 3] / first[:, 3]) - (last[:, 1] - cy)
+        if combine == "lsq":
+            depth = (den_x * num_x + den_y * num_y) / (den_x * den_x + den_y * den_y)
+            bad = ~np.isfinite(depth) & ~none
+            counts["non_finite"] = int(bad.sum())
+            return np.where(none | bad, fallback_depth, depth), counts
+        z_x, z_y = num_x / den_x, num_y / den_y
+        depth = (z_x + z_y) / 2
     bad_x = ~np.isfinite(z_x)
     bad_y = ~np.isfinite(z_y)
-    with np.errstate(invalid="ignore"):
-        depth = (z_x + z_y) / 2
     depth = np.where(bad_y, z_x, depth)
-    counts = {
-        "no_detection": int(none.sum()),
-        "non_finite_x": int((bad_x & ~none).sum()),
-        "non_finite_y": int((bad_y & ~bad_x & ~none).sum()),
-    }
-    depth = np.where(none | bad_x, fallback_depth, depth)
-    return depth, counts
+    counts["non_finite_x"] = int((bad_x & ~none).sum())
+    counts["non_finite_y"] = int((bad_y & ~bad_x & ~none).sum())
+    return np.where(none | bad_x, fallback_depth, depth), counts
 
 
 def predict(
     examples: odmd_bench.Examples,
     fill: Fill = "endpoints",
     fallback_depth: float = DEFAULT_FALLBACK_DEPTH,
+    combine: Combine = "mean",
 ) -> np.ndarray:
     """Two-observation motion-parallax depth at the last observation for every example.
 
@@ -165,6 +198,8 @@ def predict(
         Missing-box rule (module docstring); ``"endpoints"`` reproduces the paper.
     fallback_depth : float
         Depth for the fallbacks of the module docstring (1 m, as the original release).
+    combine : {"mean", "lsq"}
+        ``"mean"`` (the paper) or the opt-in least-squares combination.
 
     Returns
     -------
@@ -178,4 +213,4 @@ def predict(
     >>> bool(abs(predict(ex) - ex.depth).max() < 1e-9)
     True
     """
-    return predict_report(examples, fill, fallback_depth)[0]
+    return predict_report(examples, fill, fallback_depth, combine)[0]

@@ -214,7 +214,7 @@ def endpoint_examples() -> odmd_bench.Examples:
 def test_parallax_fallbacks_follow_the_original_release() -> None:
     ex = endpoint_examples()
     depth, counts = parallax.predict_report(ex)
-    assert counts == {"no_detection": 1, "non_finite_x": 2, "non_finite_y": 1}
+    assert counts == {"no_detection": 1, "non_finite_x": 2, "non_finite_y": 1, "non_finite": 0}
     assert np.isfinite(depth).all()
     assert depth[0] == pytest.approx(ex.depth[0], rel=1e-9)
     np.testing.assert_array_equal(depth[[1, 2, 4]], 1.0)
@@ -230,7 +230,7 @@ def test_parallax_fallbacks_follow_the_original_release() -> None:
 def test_expansion_fallbacks_follow_the_original_release() -> None:
     ex = endpoint_examples()
     depth, counts = expansion.predict_report(ex)
-    assert counts == {"no_detection": 1, "non_finite_w": 2, "non_finite_h": 1}
+    assert counts == {"no_detection": 1, "non_finite_w": 2, "non_finite_h": 1, "non_finite": 0}
     assert np.isfinite(depth).all()
     np.testing.assert_array_equal(depth[[1, 2, 4]], 1.0)
     assert depth[0] == pytest.approx(ex.depth[0], rel=1e-9)
@@ -247,6 +247,22 @@ def test_two_observation_methods_ignore_the_middle_observations(method: ModuleTy
     # fill="all" takes the nearest detected box among all ten instead.
     assert method.predict_report(ex, fill="all")[1]["no_detection"] == 0
     assert method.predict(changed, fill="all")[1] != method.predict(ex, fill="all")[1]
+
+
+@pytest.mark.parametrize("method", [parallax, expansion], ids=lambda m: m.__name__)
+def test_least_squares_combination_is_exact_and_has_its_own_fallback(method: ModuleType) -> None:
+    clean = odmd_bench.generate(1000, perturbation="normal", rng=17)
+    np.testing.assert_allclose(method.predict(clean, combine="lsq"), clean.depth, rtol=1e-9)
+    ex = endpoint_examples()
+    depth, counts = method.predict_report(ex, combine="lsq")
+    # Examples 2 and 4 have one end point copied to the other: no parallax, no expansion.
+    assert counts["no_detection"] == 1
+    assert counts["non_finite"] == 2
+    assert sum(counts.values()) == 3
+    np.testing.assert_array_equal(depth[[1, 2, 4]], 1.0)
+    np.testing.assert_allclose(depth[[0, 3]], ex.depth[[0, 3]], rtol=1e-9)
+    with pytest.raises(odmd_bench.UsageError, match="lsq"):
+        method.predict(ex, combine="median")
 
 
 def test_parallax_matches_the_release_formula_bit_for_bit() -> None:
@@ -336,6 +352,24 @@ def test_paper_parallax_robot_against_the_overwritten_depth(paper_data_dir: Path
     assert round(score(par, robot.depth), 2) == 65.55
     assert round(score(par, overwritten), 1) == 65.6
     assert round(score(exp, robot.depth), 1) == round(score(exp, overwritten), 1) == 124.1
+
+
+@pytest.mark.parametrize(
+    ("method", "split", "expected"),
+    [
+        (parallax, "val", [0.00, 6.70, 9.27, 21.58]),
+        (parallax, "test", [0.00, 6.93, 8.72, 20.69]),
+        (expansion, "val", [0.00, 5.53, 18.26, 25.58]),
+        (expansion, "test", [0.00, 5.23, 17.69, 25.84]),
+    ],
+    ids=["parallax-val", "parallax-test", "expansion-val", "expansion-test"],
+)
+def test_paper_sets_with_least_squares_combination(
+    paper_data_dir: Path, method: ModuleType, split: str, expected: list[float]
+) -> None:
+    sets = odmd_bench.load_split(split, "odmd-paper", paper_data_dir)
+    means = [float(percent_error(ex, method.predict(ex, combine="lsq")).mean()) for ex in sets.values()]
+    assert [round(v, 2) for v in means] == expected
 
 
 def test_paper_box_ls_test_details(paper_data_dir: Path) -> None:
