@@ -121,10 +121,14 @@ def baseline(
     fallbacks: dict[str, dict[str, int]] = {}
     for set_name, examples in sets.items():
         depths[set_name], fallbacks[set_name] = _run(method, examples, kwargs)
+        # Every method promises one finite depth per example; anything else is its bug.
         if depths[set_name].shape != (len(examples),):
             raise RuntimeError(
                 f"baseline {name} returned shape {depths[set_name].shape} for {len(examples)} examples"
             )
+        if not np.isfinite(depths[set_name]).all():
+            bad = int((~np.isfinite(depths[set_name])).sum())
+            raise RuntimeError(f"baseline {name} returned {bad} non-finite depths on set {set_name}")
 
     path = output if output is not None else default_output(name, benchmark, split)
     write_predictions(path, split, depths, benchmark=benchmark)
