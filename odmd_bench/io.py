@@ -128,12 +128,18 @@ def write_sets(
     sets: Mapping[str, Examples],
     *,
     file_attrs: Mapping[str, Any] | None = None,
+    compress: bool = False,
 ) -> dict[str, str]:
     """Write ``{set name: examples}`` to one HDF5 file, atomically.
 
     Each group gets the examples' ``attrs`` plus ``set``, ``n``, ``n_obs`` and
-    ``content_sha256``. Returns ``{set name: content hash}``.
+    ``content_sha256``. Data-folder files are stored uncompressed (reading them is
+    twice as fast, for about 30% more disk); ``compress`` (gzip) is for files that are
+    committed. Returns ``{set name: content hash}``.
     """
+    options: dict[str, Any] = (
+        {"compression": "gzip", "compression_opts": 4, "shuffle": True} if compress else {}
+    )
     import h5py
 
     hashes: dict[str, str] = {}
@@ -148,7 +154,7 @@ def write_sets(
             hashes[name] = digest
             g = f.create_group(name, track_order=True)
             for k, a in arrays.items():
-                g.create_dataset(k, data=a, compression="gzip", compression_opts=4, shuffle=True)
+                g.create_dataset(k, data=a, **options)
             attrs = {**ex.attrs, "set": name, "n": len(ex), "n_obs": ex.n_obs, "content_sha256": digest}
             for k, v in attrs.items():
                 if v is not None:

@@ -62,7 +62,9 @@ def main() -> None:
             robot = read_set(Path(tmp) / "odmd-paper" / f"{split}.h5", "robot")
             robot.attrs.update(benchmark="odmd-v1", split=split)
             rel = f"odmd-v1/robot-{split}.h5"
-            write_sets(ROOT / "splits" / rel, {"robot": robot}, file_attrs={"benchmark": "odmd-v1"})
+            write_sets(
+                ROOT / "splits" / rel, {"robot": robot}, file_attrs={"benchmark": "odmd-v1"}, compress=True
+            )
             entries["robot"] = {
                 "kind": "file",
                 "file": rel,
