@@ -151,7 +151,9 @@ class RobustParams:
                 problems.append(f"noise_models[{i}]: expected a NoiseModel, got {nm!r}")
                 continue
             if not (np.isfinite(nm.sigma_box) and nm.sigma_box > 0):
-                problems.append(f"noise_models[{i}].sigma_box: expected a positive number, got {nm.sigma_box!r}")
+                problems.append(
+                    f"noise_models[{i}].sigma_box: expected a positive number, got {nm.sigma_box!r}"
+                )
             if not (np.isfinite(nm.sigma_camera) and nm.sigma_camera >= 0):
                 problems.append(
                     f"noise_models[{i}].sigma_camera: expected a number >= 0, got {nm.sigma_camera!r}"
@@ -233,7 +235,9 @@ def predict_report(
                     e.problems,
                 ) from None
         if len(intrinsics) != 6 or not all(np.isfinite(float(v)) for v in intrinsics):
-            raise UsageError(f"intrinsics must be 6 finite numbers (fx, fy, cx, cy, width, height), got {intrinsics}")
+            raise UsageError(
+                f"intrinsics must be 6 finite numbers (fx, fy, cx, cy, width, height), got {intrinsics}"
+            )
         fx, fy, cx, cy, width, height = (float(v) for v in intrinsics)
         if not (fx > 0 and fy > 0 and width > 0 and height > 0):
             raise UsageError(f"intrinsics must have positive fx, fy and image size, got {intrinsics}")
@@ -459,7 +463,6 @@ def _gauss_newton(
     cam_var[-1] = 0.0  # the last position is zero by definition
     inv_cam_var = np.divide(1.0, cam_var, out=np.zeros_like(cam_var), where=cam_var > 0)
     dcam = {0: prob.a**2, 1: prob.b**2, 2: 0.0, 3: 0.0}
-    eye = np.eye(1 + nc)
 
     theta = np.concatenate([z0[None], _offsets(prob, z0)])  # (1 + nc, N)
     delta = np.zeros((3, n_obs, n))
@@ -493,20 +496,25 @@ def _gauss_newton(
             rt.append(r[j] + extra)
         ru = sum(rt[j] * u[j] for j in range(nc))
         sr = [rt[j] * inv_md[j] - kappa * ru * u[j] for j in range(nc)]  # Sigma^-1 r~
-        # Normal equations with J_theta = (1/Z_i)[-p, I] and Sigma^-1 = D^-1 - kappa u u^T.
-        h = np.empty((len(ids), 1 + nc, 1 + nc))
-        grad = np.empty((len(ids), 1 + nc))
-        h[:, 0, 0] = (iz2 * pu_u * one_k).sum(axis=0)
-        grad[:, 0] = -(iz * sum(p[j] * sr[j] for j in range(nc))).sum(axis=0)
+        # Normal equations with J_theta = (1/Z_i)[-p, I] and Sigma^-1 = D^-1 - kappa u u^T,
+        # one (N,) array per entry of the (1 + nc) x (1 + nc) matrices.
+        k1 = 1 + nc
+        h: list[list[np.ndarray]] = [[np.empty(0)] * k1 for _ in range(k1)]
+        grad: list[np.ndarray] = [np.empty(0)] * k1
+        h[0][0] = (iz2 * pu_u * one_k).sum(axis=0)
+        grad[0] = -(iz * sum(p[j] * sr[j] for j in range(nc))).sum(axis=0)
         kz = iz2 * kappa
+        one_kz = iz2 * one_k
         for j in range(nc):
-            h[:, 0, 1 + j] = h[:, 1 + j, 0] = -(iz2 * u[j] * one_k).sum(axis=0)
-            grad[:, 1 + j] = (iz * sr[j]).sum(axis=0)
-            h[:, 1 + j, 1 + j] = (iz2 * inv_md[j] - kz * u[j] * u[j]).sum(axis=0)
+            h[0][1 + j] = h[1 + j][0] = -(one_kz * u[j]).sum(axis=0)
+            grad[1 + j] = (iz * sr[j]).sum(axis=0)
+            kzu = kz * u[j]
+            h[1 + j][1 + j] = (iz2 * inv_md[j] - kzu * u[j]).sum(axis=0)
             for col in range(j + 1, nc):
-                h[:, 1 + j, 1 + col] = h[:, 1 + col, 1 + j] = -(kz * u[j] * u[col]).sum(axis=0)
-        damped = h + (lam[:, None] * (np.diagonal(h, axis1=1, axis2=2) + 1e-12))[:, :, None] * eye
-        step = _solve(damped, grad).T  # (1 + nc, Na)
+                h[1 + j][1 + col] = h[1 + col][1 + j] = -(kzu * u[col]).sum(axis=0)
+        for i in range(k1):
+            h[i][i] = h[i][i] * (1.0 + lam) + lam * 1e-12
+        step = np.stack(_solve_spd(h, grad))  # (1 + nc, Na)
         # New corrections: P J_delta^T Sigma^-1 (r~ - J_theta step).
         v = [rt[j] - (step[1 + j] - p[j] * step[0]) * iz for j in range(nc)]
         vu = sum(v[j] * u[j] for j in range(nc))
@@ -588,18 +596,29 @@ def _evaluate(
     return cost, zi, p, r, s
 
 
-def _solve(h: np.ndarray, grad: np.ndarray) -> np.ndarray:
-    """Solve the stacked systems ``h x = grad``, (N, k, k) and (N, k); a singular one gives 0."""
-    ok = np.isfinite(h).all(axis=(1, 2)) & np.isfinite(grad).all(axis=1)
-    hh = np.where(ok[:, None, None], h, np.eye(h.shape[1]))
-    gg = np.where(ok[:, None], grad, 0.0)
-    try:
-        x = np.linalg.solve(hh, gg[:, :, None])[:, :, 0]
-    except np.linalg.LinAlgError:
-        x = np.zeros_like(gg)
-        for i in np.flatnonzero(ok):  # only when some matrix is exactly singular: rare
-            try:
-                x[i] = np.linalg.solve(hh[i], gg[i])
-            except np.linalg.LinAlgError:
-                x[i] = 0.0
-    return np.where(np.isfinite(x), x, 0.0)
+def _solve_spd(h: list[list[np.ndarray]], b: list[np.ndarray]) -> list[np.ndarray]:
+    """Solve ``h x = b`` for many small symmetric positive definite systems at once.
+
+    ``h[i][j]`` and ``b[i]`` are (N,) arrays (one system per column): a Cholesky
+    factorisation written out over the k x k entries, so that each operation runs on
+    all N systems. A system that is not positive definite (or not finite) gets x = 0.
+    """
+    k = len(b)
+    low: list[list[np.ndarray]] = [[np.empty(0)] * k for _ in range(k)]
+    ok = np.ones(b[0].shape, dtype=bool)
+    for j in range(k):
+        d = h[j][j] - sum((low[j][m] ** 2 for m in range(j)), np.zeros_like(b[0]))
+        good = np.isfinite(d) & (d > 0)
+        ok &= good
+        ljj = np.sqrt(np.where(good, d, 1.0))
+        low[j][j] = ljj
+        for i in range(j + 1, k):
+            acc = h[i][j] - sum((low[i][m] * low[j][m] for m in range(j)), np.zeros_like(b[0]))
+            low[i][j] = acc / ljj
+    y: list[np.ndarray] = []
+    for i in range(k):
+        y.append((b[i] - sum((low[i][m] * y[m] for m in range(i)), np.zeros_like(b[0]))) / low[i][i])
+    x: list[np.ndarray] = [np.empty(0)] * k
+    for i in reversed(range(k)):
+        x[i] = (y[i] - sum((low[m][i] * x[m] for m in range(i + 1, k)), np.zeros_like(b[0]))) / low[i][i]
+    return [np.where(ok & np.isfinite(xi), xi, 0.0) for xi in x]
