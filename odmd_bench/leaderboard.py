@@ -479,7 +479,7 @@ class Ranked:
 def rank_groups(
     errors: Mapping[str, Mapping[str, Any]],
     *,
-    n_resamples: int = RANK_RESAMPLES,
+    n_resamples: int | None = None,
     seed: int = RANK_SEED,
     confidence: float = RANK_CONFIDENCE,
 ) -> list[Ranked]:
@@ -502,6 +502,7 @@ def rank_groups(
     >>> [(r.key, r.group) for r in rank_groups({"b": {"s": e}, "a": {"s": e}, "c": {"s": e + 5}})]
     [('a', 1), ('b', 1), ('c', 2)]
     """
+    n_resamples = RANK_RESAMPLES if n_resamples is None else n_resamples
     means = {
         k: float(np.mean([np.mean(np.asarray(v, dtype=np.float64)) for v in sets.values()]))
         for k, sets in errors.items()
@@ -596,7 +597,7 @@ def collect(
     data_dir: str | os.PathLike[str] | None = None,
     original: str | os.PathLike[str] | None = None,
     *,
-    n_resamples: int = RANK_RESAMPLES,
+    n_resamples: int | None = None,
 ) -> tuple[list[Board], list[str]]:
     """Read, validate, score and rank every entry under ``root``.
 
@@ -661,7 +662,7 @@ def build(
     data_dir: str | os.PathLike[str] | None = None,
     original: str | os.PathLike[str] | None = None,
     *,
-    n_resamples: int = RANK_RESAMPLES,
+    n_resamples: int | None = None,
 ) -> Built:
     """Everything ``leaderboard build`` writes, computed (nothing is written).
 
@@ -670,6 +671,7 @@ def build(
     ValidationError
         Naming every problem with the entries (metadata, data, predictions).
     """
+    n_resamples = RANK_RESAMPLES if n_resamples is None else n_resamples
     boards, problems = collect(root, data_dir, original, n_resamples=n_resamples)
     reported: list[dict[str, Any]] = []
     try:
@@ -707,7 +709,8 @@ def _diff_dict(d: PairedDifference | None, a: str, b: str) -> dict[str, Any] | N
     }
 
 
-def _rule(n_resamples: int) -> str:
+def _rule(n_resamples: int | None) -> str:
+    n_resamples = RANK_RESAMPLES if n_resamples is None else n_resamples
     return (
         "Rows sorted by All (ties by method id). The first row leads group 1; each next row is "
         "compared with the current group's leader by odmd_bench.compare.compare_errors on per-example "
@@ -718,7 +721,7 @@ def _rule(n_resamples: int) -> str:
 
 
 def render_json(
-    boards: Sequence[Board], reported: Sequence[Mapping[str, Any]], *, n_resamples: int = RANK_RESAMPLES
+    boards: Sequence[Board], reported: Sequence[Mapping[str, Any]], *, n_resamples: int | None = None
 ) -> str:
     """``leaderboard.json``: every board's rows with all metrics, metadata and provenance."""
     out: dict[str, Any] = {
@@ -727,7 +730,7 @@ def render_json(
         "float_decimals": JSON_DECIMALS,
         "rank_groups": {
             "rule": _rule(n_resamples),
-            "n_resamples": n_resamples,
+            "n_resamples": RANK_RESAMPLES if n_resamples is None else n_resamples,
             "seed": RANK_SEED,
             "confidence": RANK_CONFIDENCE,
         },
@@ -795,7 +798,7 @@ def _fmt(x: float) -> str:
 
 
 def render_markdown(
-    boards: Sequence[Board], reported: Sequence[Mapping[str, Any]], *, n_resamples: int = RANK_RESAMPLES
+    boards: Sequence[Board], reported: Sequence[Mapping[str, Any]], *, n_resamples: int | None = None
 ) -> str:
     """``LEADERBOARD.md``: one ranked table per benchmark and split, then the reported table."""
     lines = [
@@ -1105,6 +1108,8 @@ def check(
     root: str | os.PathLike[str],
     data_dir: str | os.PathLike[str] | None = None,
     original: str | os.PathLike[str] | None = None,
+    *,
+    n_resamples: int | None = None,
 ) -> list[str]:
     """Everything that is wrong with the leaderboard folder, one line each (empty: all good).
 
@@ -1114,7 +1119,7 @@ def check(
     """
     root = Path(root)
     try:
-        built = build(root, data_dir, original)
+        built = build(root, data_dir, original, n_resamples=n_resamples)
     except ValidationError as e:
         return e.problems or [e.message]
     problems = []

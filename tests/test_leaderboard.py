@@ -1,0 +1,404 @@
+"""The leaderboard: metadata checks, re-scoring, rank groups, check's precise diffs, CLI."""
+
+from __future__ import annotations
+
+import gzip
+import json
+import shutil
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+from click.testing import CliRunner
+
+from odmd_bench import leaderboard as lb
+from odmd_bench.cli import cli
+from odmd_bench.errors import UsageError, ValidationError
+
+REPO = Path(__file__).resolve().parents[1]
+FAST = 200  # resamples for boards built by the tests (the committed board uses lb.RANK_RESAMPLES)
+
+
+# ----------------------------------------------------------------------------- helpers
+
+
+def _predictions(data_dir: Path, tmp: Path, method: str) -> Path:
+    """A predictions CSV of a real baseline on odmd-v1 test."""
+    import importlib
+
+    from odmd_bench import load_split
+    from odmd_bench.predictions import write_predictions
+
+    module = importlib.import_module(f"baselines.{method}")
+    sets = load_split("test", "odmd-v1", data_dir)
+    path = tmp / f"{method}.csv"
+    write_predictions(path, "test", {s: module.predict(ex) for s, ex in sets.items()}, benchmark="odmd-v1")
+    return path
+
+
+def _add(root: Path, data_dir: Path, preds: Path, method: str, **over: object) -> lb.Entry:
+    kwargs: dict[str, object] = {
+        "method": method,
+        "name": method.upper(),
+        "description": "a test entry",
+        "paper": "none",
+        "code": "https://example.org/code",
+        "training_data": "none",
+        "command": f"odmd-bench baseline {method}",
+        "benchmark": "odmd-v1",
+        "split": "test",
+        "calibrated": False,
+        "date": "2026-01-02",
+        "data_dir": data_dir,
+    }
+    kwargs.update(over)
+    return lb.add_entry(root, preds, **kwargs)  # type: ignore[arg-type]
+
+
+@pytest.fixture(scope="module")
+def v1_preds(v1_data_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    tmp = tmp_path_factory.mktemp("preds")
+    return {m: _predictions(v1_data_dir, tmp, m) for m in ("box_ls", "expansion")}
+
+
+@pytest.fixture
+def board(tmp_path: Path, v1_data_dir: Path, v1_preds: dict[str, Path]) -> Path:
+    """A built leaderboard folder with two odmd-v1 entries."""
+    root = tmp_path / "leaderboard"
+    (root / lb.ENTRIES).mkdir(parents=True)
+    _add(root, v1_data_dir, v1_preds["box_ls"], "box-ls")
+    _add(root, v1_data_dir, v1_preds["expansion"], "expansion", calibrated=False)
+    lb.write(root, lb.build(root, v1_data_dir, n_resamples=FAST), plot=False)
+    return root
+
+
+def _check(root: Path, data_dir: Path) -> list[str]:
+    return lb.check(root, data_dir, n_resamples=FAST)
+
+
+def _rewrite_gz(path: Path, edit: object) -> None:
+    text = gzip.decompress(path.read_bytes()).decode()
+    path.write_bytes(gzip.compress(edit(text).encode()))  # type: ignore[operator]
+
+
+# ----------------------------------------------------------------------------- rank groups
+
+
+def test_rank_groups_ties_share_a_group_and_order_is_by_all_then_id() -> None:
+    rng = np.random.default_rng(1)
+    base = {"normal": rng.gamma(2.0, 2.0, 300), "robot": rng.gamma(2.0, 5.0, 300)}
+    same = {s: v.copy() for s, v in base.items()}
+    worse = {s: v + 5.0 for s, v in base.items()}
+    ranked = lb.rank_groups({"zeta": same, "alpha": base, "bad": worse}, n_resamples=FAST)
+    assert [(r.key, r.group) for r in ranked] == [("alpha", 1), ("zeta", 1), ("bad", 2)]
+    assert ranked[0].versus_leader is None and ranked[0].leader == "alpha"
+    assert ranked[1].leader == "alpha" and ranked[1].versus_leader is not None
+    assert ranked[1].versus_leader.difference == 0.0
+    # A new group's leader keeps the comparison that separated it.
+    assert ranked[2].leader == "bad" and ranked[2].versus_previous is not None
+    assert ranked[2].versus_previous.verdict != "not distinguishable"
+
+
+def test_rank_groups_noise_level_differences_tie_and_groups_never_decrease() -> None:
+    rng = np.random.default_rng(2)
+    e = {"normal": rng.gamma(2.0, 2.0, 400)}
+    noisy = {"normal": e["normal"] + rng.normal(0, 0.5, 400)}  # mean shift ~0, not distinguishable
+    far = {"normal": e["normal"] * 3 + 10}
+    far_tie = {"normal": far["normal"] + rng.normal(0, 0.5, 400)}
+    ranked = lb.rank_groups({"a": e, "b": noisy, "c": far, "d": far_tie}, n_resamples=FAST)
+    groups = {r.key: r.group for r in ranked}
+    assert groups["a"] == groups["b"] == 1
+    assert groups["c"] == groups["d"] == 2
+    assert [r.group for r in ranked] == sorted(r.group for r in ranked)
+
+
+def test_rank_groups_distinct_methods_get_distinct_groups() -> None:
+    x = np.linspace(1, 2, 300)
+    ranked = lb.rank_groups({"a": {"s": x}, "b": {"s": x + 1}, "c": {"s": x + 2}}, n_resamples=FAST)
+    assert [r.group for r in ranked] == [1, 2, 3]
+
+
+# ----------------------------------------------------------------------------- metadata
+
+
+def _entry_folder(
+    tmp_path: Path, meta: dict[str, object], method: str = "m", name: str = "odmd-v1-test"
+) -> Path:
+    folder = tmp_path / "leaderboard" / lb.ENTRIES / method / name
+    folder.mkdir(parents=True)
+    (folder / "predictions.csv").write_text("split,set,index,depth\n")
+    (folder / "entry.yaml").write_text(yaml.safe_dump(meta))
+    return folder
+
+
+def _good_meta() -> dict[str, object]:
+    return {
+        "method": "m",
+        "name": "M",
+        "description": "d",
+        "paper": "none",
+        "code": "https://example.org",
+        "training_data": "none",
+        "command": "cmd",
+        "date": "2026-01-02",
+        "benchmark": "odmd-v1",
+        "split": "test",
+        "calibrated": True,
+        "sets_content_sha256": {s: "a" * 64 for s in ("normal", "camera", "object", "robot")},
+        "predictions": "predictions.csv",
+    }
+
+
+def test_complete_metadata_is_read(tmp_path: Path) -> None:
+    entry = lb.read_entry(_entry_folder(tmp_path, _good_meta()))
+    assert entry.key == "m/odmd-v1-test" and entry.meta["calibrated"] is True
+    assert entry.predictions.name == "predictions.csv"
+
+
+def test_incomplete_metadata_names_every_problem(tmp_path: Path) -> None:
+    meta = _good_meta()
+    del meta["command"]
+    meta["paper"] = ""
+    meta["date"] = "22/11/2026"
+    meta["calibrated"] = "yes"
+    meta["colour"] = "blue"
+    meta["sets_content_sha256"] = {"normal": "abc"}
+    with pytest.raises(ValidationError) as info:
+        lb.read_entry(_entry_folder(tmp_path, meta))
+    text = info.value.render()
+    for expected in (
+        "missing field 'command'",
+        "missing field 'paper'",
+        "date '22/11/2026' is not a date",
+        "calibrated must be true or false",
+        "unknown field 'colour'",
+        "lacks the sets camera, object, robot",
+        "sets_content_sha256 of 'normal' is not 64",
+    ):
+        assert expected in text
+
+
+def test_metadata_must_match_its_folder(tmp_path: Path) -> None:
+    with pytest.raises(ValidationError, match="does not match its folder"):
+        lb.read_entry(_entry_folder(tmp_path, _good_meta(), method="other"))
+
+
+def test_json_metadata_and_a_missing_predictions_file(tmp_path: Path) -> None:
+    folder = _entry_folder(tmp_path, _good_meta())
+    (folder / "entry.yaml").unlink()
+    meta = _good_meta() | {"predictions": "nope.csv.gz"}
+    (folder / "entry.json").write_text(json.dumps(meta))
+    with pytest.raises(ValidationError, match="predictions file nope.csv.gz is not in the entry folder"):
+        lb.read_entry(folder)
+
+
+# ----------------------------------------------------------------------------- build and check
+
+
+def test_build_then_check_passes(board: Path, v1_data_dir: Path) -> None:
+    assert _check(board, v1_data_dir) == []
+    data = json.loads((board / lb.JSON_FILE).read_text())
+    (bd,) = data["boards"]
+    assert bd["benchmark"] == "odmd-v1" and [r["method"] for r in bd["rows"]] == ["box-ls", "expansion"]
+    assert bd["rows"][0]["group"] == 1
+    md = (board / lb.MARKDOWN).read_text()
+    assert "## odmd-v1 test" in md and "(generator v1 + imported robot)" in md
+
+
+def test_rescoring_matches_the_evaluator(board: Path, v1_data_dir: Path, v1_preds: dict[str, Path]) -> None:
+    from odmd_bench.evaluate import evaluate
+
+    direct = evaluate(v1_preds["box_ls"], benchmark="odmd-v1", data_dir=v1_data_dir)
+    row = json.loads((board / lb.JSON_FILE).read_text())["boards"][0]["rows"][0]
+    assert row["all"] == pytest.approx(direct.all_percent_error_mean, abs=1e-6)
+    assert row["predictions_csv_sha256"] == direct.provenance["predictions_sha256"]
+
+
+def test_changing_one_digit_of_the_table_fails_check_precisely(board: Path, v1_data_dir: Path) -> None:
+    md = board / lb.MARKDOWN
+    lines = md.read_text().splitlines(keepends=True)
+    i = next(k for k, line in enumerate(lines) if line.startswith("| 1 | [BOX-LS]"))
+    cells = lines[i].split(" | ")
+    old = cells[3]  # Camera
+    cells[3] = old[:-1] + str((int(old[-1]) + 1) % 10)
+    lines[i] = " | ".join(cells)
+    md.write_text("".join(lines))
+    problems = _check(board, v1_data_dir)
+    assert problems == [
+        f"LEADERBOARD.md line {i + 1}: table 'odmd-v1 test', row 'BOX-LS', column 'Camera': "
+        f"committed {cells[3]!r}, build writes {old!r}"
+    ]
+
+
+def test_changing_one_prediction_fails_check_precisely(board: Path, v1_data_dir: Path) -> None:
+    gz = board / lb.ENTRIES / "expansion" / "odmd-v1-test" / "predictions.csv.gz"
+
+    def bump(text: str) -> str:
+        lines = text.splitlines(keepends=True)
+        parts = lines[1].split(",")
+        parts[3] = repr(float(parts[3]) * 1.5)
+        lines[1] = ",".join(parts)
+        return "".join(lines)
+
+    _rewrite_gz(gz, bump)
+    problems = _check(board, v1_data_dir)
+    joined = "\n".join(problems)
+    assert (
+        "leaderboard.json: boards[odmd-v1 test].rows[expansion].predictions_csv_sha256: committed" in joined
+    )
+    assert "rows[expansion].sets.normal.percent_error.mean: committed 0.0, build writes" in joined
+    assert all(p.startswith(("leaderboard.json", "LEADERBOARD.md")) for p in problems)
+
+
+def test_predictions_for_other_data_fail(board: Path, v1_data_dir: Path) -> None:
+    path = board / lb.ENTRIES / "box-ls" / "odmd-v1-test" / "entry.yaml"
+    meta = yaml.safe_load(path.read_text())
+    meta["sets_content_sha256"]["camera"] = "0" * 64
+    path.write_text(yaml.safe_dump(meta, sort_keys=False))
+    problems = _check(board, v1_data_dir)
+    assert problems[0] == "entry box-ls/odmd-v1-test: predictions are for different data"
+    assert "odmd-v1 test camera with content SHA-256 0000000000000000..." in problems[1]
+
+
+def test_invalid_predictions_fail_with_the_evaluators_message(board: Path, v1_data_dir: Path) -> None:
+    gz = board / lb.ENTRIES / "box-ls" / "odmd-v1-test" / "predictions.csv.gz"
+    _rewrite_gz(gz, lambda t: "".join(t.splitlines(keepends=True)[:-1]))  # drop the last row
+    problems = _check(board, v1_data_dir)
+    assert problems[0] == "entry box-ls/odmd-v1-test: predictions.csv.gz fails validation"
+    assert "of set 'robot' have no row (missing indices 2999)" in problems[1]
+
+
+def test_incomplete_metadata_fails_check(board: Path, v1_data_dir: Path) -> None:
+    path = board / lb.ENTRIES / "box-ls" / "odmd-v1-test" / "entry.yaml"
+    meta = yaml.safe_load(path.read_text())
+    del meta["training_data"]
+    path.write_text(yaml.safe_dump(meta, sort_keys=False))
+    problems = _check(board, v1_data_dir)
+    assert problems[0] == "entry box-ls/odmd-v1-test: metadata is incomplete or wrong"
+    assert "missing field 'training_data'" in problems[1]
+
+
+def test_missing_generated_file_fails_check(board: Path, v1_data_dir: Path) -> None:
+    (board / lb.JSON_FILE).unlink()
+    assert _check(board, v1_data_dir) == ["leaderboard.json is missing; run `odmd-bench leaderboard build`"]
+
+
+def test_add_refuses_an_existing_entry_and_bad_predictions(
+    board: Path, v1_data_dir: Path, tmp_path: Path, v1_preds: dict[str, Path]
+) -> None:
+    with pytest.raises(UsageError, match="already exists"):
+        _add(board, v1_data_dir, v1_preds["box_ls"], "box-ls")
+    bad = tmp_path / "bad.csv"
+    bad.write_text("split,set,index,depth\ntest,normal,0,1.0\n")
+    with pytest.raises(ValidationError):
+        _add(board, v1_data_dir, bad, "newbie")
+    assert not (board / lb.ENTRIES / "newbie" / "odmd-v1-test").exists()
+
+
+def test_reported_results_are_checked(tmp_path: Path) -> None:
+    (tmp_path / lb.REPORTED).write_text(
+        yaml.safe_dump(
+            [{"method": "X", "benchmark": "odmd-paper", "split": "test", "sets": {"normal": "1"}, "all": "x"}]
+        )
+    )
+    with pytest.raises(ValidationError) as info:
+        lb.read_reported(tmp_path)
+    text = info.value.render()
+    assert "missing field 'source'" in text and "sets must be exactly" in text and "not a number: 'x'" in text
+
+
+def test_find_root_from_a_subfolder(board: Path) -> None:
+    assert lb.find_root(board / lb.ENTRIES / "box-ls") == board.resolve()
+    with pytest.raises(UsageError, match="no leaderboard folder"):
+        lb.find_root(board.parent.parent)
+
+
+# ----------------------------------------------------------------------------- plot
+
+
+def test_plot_is_written(board: Path, v1_data_dir: Path) -> None:
+    pytest.importorskip("matplotlib")
+    said = lb.write(board, lb.build(board, v1_data_dir, n_resamples=FAST))
+    png = board / lb.PLOT
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and f"wrote {png}" in said
+
+
+def test_build_without_matplotlib_says_so(
+    board: Path, v1_data_dir: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    for name in [m for m in sys.modules if m == "matplotlib" or m.startswith("matplotlib.")]:
+        monkeypatch.delitem(sys.modules, name)
+    monkeypatch.setitem(sys.modules, "matplotlib", None)
+    said = lb.write(board, lb.build(board, v1_data_dir, n_resamples=FAST))
+    assert any("skipped the plot" in s and "odmd-bench[plot]" in s for s in said)
+    assert not (board / lb.PLOT).exists()
+
+
+# ----------------------------------------------------------------------------- CLI
+
+
+def test_cli_check_exits_2_naming_the_difference(
+    board: Path, v1_data_dir: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(lb, "RANK_RESAMPLES", FAST)
+    runner = CliRunner()
+    args = ["leaderboard", "check", "--root", str(board), "--data-dir", str(v1_data_dir)]
+    # The fixture built with FAST resamples, and the CLI's default is patched to match.
+    ok = runner.invoke(cli, args)
+    assert ok.exit_code == 0, ok.output
+    md = board / lb.MARKDOWN
+    md.write_text(md.read_text().replace("| 1 | [BOX-LS]", "| 2 | [BOX-LS]"))
+    bad = runner.invoke(cli, args)
+    assert bad.exit_code == 2
+    assert "row 'BOX-LS', column 'Group': committed '2', build writes '1'" in bad.output
+
+
+def test_cli_build_writes_the_files(board: Path, v1_data_dir: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(lb, "RANK_RESAMPLES", FAST)
+    (board / lb.MARKDOWN).unlink()
+    result = CliRunner().invoke(
+        cli, ["leaderboard", "build", "--root", str(board), "--data-dir", str(v1_data_dir), "--no-plot"]
+    )
+    assert result.exit_code == 0, result.output
+    assert "2 entries on 1 boards" in result.output and (board / lb.MARKDOWN).is_file()
+
+
+# ----------------------------------------------------------------------------- the committed leaderboard
+
+
+@pytest.fixture(scope="module")
+def both_data_dir(paper_data_dir: Path, v1_data_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    data = tmp_path_factory.mktemp("both-data")
+    (data / "odmd-paper").symlink_to(paper_data_dir / "odmd-paper")
+    (data / "odmd-v1").symlink_to(v1_data_dir / "odmd-v1")
+    return data
+
+
+def test_committed_leaderboard_is_what_build_writes(both_data_dir: Path) -> None:
+    assert lb.check(REPO / "leaderboard", both_data_dir) == []
+
+
+def test_committed_leaderboard_reproduces_the_paper_box_ls() -> None:
+    data = json.loads((REPO / "leaderboard" / lb.JSON_FILE).read_text())
+    paper = next(b for b in data["boards"] if b["benchmark"] == "odmd-paper")
+    box = next(r for r in paper["rows"] if r["method"] == "box-ls")
+    means = [
+        round(box["sets"][s]["percent_error"]["mean"], 2) for s in ("normal", "camera", "object", "robot")
+    ]
+    assert means == [0.0, 4.47, 21.60, 21.23]
+
+
+def test_a_copy_of_the_committed_leaderboard_with_one_changed_digit_fails(
+    both_data_dir: Path, tmp_path: Path
+) -> None:
+    root = tmp_path / "leaderboard"
+    shutil.copytree(REPO / "leaderboard", root)
+    (tmp_path / "baselines").symlink_to(REPO / "baselines")  # entries link their code by repository path
+    md = root / lb.MARKDOWN
+    md.write_text(md.read_text().replace("| **11.83** |", "| **11.84** |", 1))
+    problems = lb.check(root, both_data_dir)
+    assert (
+        len(problems) == 1 and "column 'All': committed '**11.84**', build writes '**11.83**'" in problems[0]
+    )
