@@ -123,11 +123,11 @@ class RobustParams:
     """
 
     loss: str = "cauchy"
-    loss_scale: float = 2.0
+    loss_scale: float = 3.0
     noise_models: tuple[NoiseModel, ...] = field(
         default_factory=lambda: (NoiseModel(2e-4, 0.02, 0.0), NoiseModel(3e-4, 0.005, 40.0))
     )
-    iterations: int = 30
+    iterations: int = 10
     tolerance: float = 1e-9
     linear_iterations: int = 3
     min_depth: float = 1e-3
@@ -283,9 +283,13 @@ def fit(
     depth = z0.copy()
     best = np.full(n, np.inf)
     chosen = np.full(n, -1)
+    z_first = z0
     if params.iterations > 0:
         for j, nm in enumerate(params.noise_models):
-            z, crit = _gauss_newton(base, z0, nm, params)
+            # Later models start where the first one ended (fewer iterations).
+            z, crit = _gauss_newton(base, z0 if j == 0 else z_first, nm, params)
+            if j == 0:
+                z_first = np.where(np.isfinite(z) & (z >= base.z_low), z, z0)
             crit = crit + nm.penalty
             ok = np.isfinite(z) & (z >= base.z_low) & np.isfinite(crit)
             take = ok & (crit < best)
