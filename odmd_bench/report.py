@@ -67,7 +67,16 @@ def format_table(result: EvaluationResult) -> str:
     Percent error in %, absolute error in metres. ``All`` is the mean of the listed
     sets' mean percent errors (the paper's "All Sets").
     """
-    w = 8
+    cells = {
+        s: (
+            [_pct(k, m["percent_error"][k]) for k in STATS],
+            [f"{m['absolute_error'][k]:.4f}" for k in STATS],
+        )
+        for s, m in result.sets.items()
+    }
+    # Columns widen for huge errors (a method can be off by 10,000%) so they never merge.
+    longest = max([len(c) for pct, ab in cells.values() for c in pct + ab], default=0)
+    w = max(8, longest + 2)
     name_w = max([len("set"), len("All")] + [len(s) for s in result.sets])
     lines = [_header_line(result), ""]
     pct_block = "percent error (%)".center(5 * w)
@@ -78,9 +87,9 @@ def format_table(result: EvaluationResult) -> str:
     lines.append(head)
     lines.append("-" * len(head))
     for s, m in result.sets.items():
-        row = f"{s:<{name_w}} {m['n']:>6}"
-        row += "".join(f"{_pct(k, m['percent_error'][k]):>{w}}" for k in STATS)
-        row += "  " + "".join(f"{m['absolute_error'][k]:>{w}.4f}" for k in STATS)
+        pct, ab = cells[s]
+        row = f"{s:<{name_w}} {m['n']:>6}" + "".join(f"{c:>{w}}" for c in pct)
+        row += "  " + "".join(f"{c:>{w}}" for c in ab)
         lines.append(row)
     lines.append("-" * len(head))
     n_all = sum(m["n"] for m in result.sets.values())

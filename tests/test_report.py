@@ -1,0 +1,22 @@
+from __future__ import annotations
+
+import numpy as np
+
+import odmd_bench
+from odmd_bench.evaluate import Predictions, score
+from odmd_bench.report import format_table
+
+
+def test_table_columns_never_run_together_for_huge_errors() -> None:
+    ex = odmd_bench.generate(4, rng=0)
+    ex.attrs.update(benchmark="odmd-v1", split="test", set="normal", content_sha256="0" * 64)
+    pred = ex.depth.copy()
+    pred[0] *= 1000.0  # 99,900 % error
+    p = Predictions(
+        path="x.csv", sha256="1" * 64, benchmark="odmd-v1", split="test", depths={"normal": pred}, n_rows=4
+    )
+    table = format_table(score(p, {"normal": ex}))
+    row = next(line for line in table.splitlines() if line.startswith("normal"))
+    cells = row.split()
+    assert len(cells) == 12, row  # set, n, 5 percent and 5 absolute statistics
+    assert float(cells[5]) == np.round(abs(pred[0] - ex.depth[0]) / ex.depth[0] * 100, 2)
