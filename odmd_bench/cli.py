@@ -53,9 +53,9 @@ def cli() -> None:
 
 
 def _register() -> None:
-    from odmd_bench.commands import baseline, data, evaluate, leaderboard
+    from odmd_bench.commands import baseline, data, dbox, evaluate, leaderboard
 
-    for module in (data, baseline, evaluate, leaderboard):
+    for module in (data, baseline, evaluate, leaderboard, dbox):
         for command in module.COMMANDS:
             cli.add_command(command)
 
