@@ -38,8 +38,9 @@ import json
 import os
 import re
 import tempfile
+import zlib
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -226,8 +227,8 @@ def read_entry(folder: str | os.PathLike[str], repo_root: str | os.PathLike[str]
             problems.append(f"method {method!r} must be lowercase letters, digits, '.', '_' or '-'")
         elif method != folder.parent.name:
             problems.append(f"method {method!r} does not match its folder entries/{folder.parent.name}/")
-    bench = meta.get("benchmark")
-    split = meta.get("split")
+    bench = meta.get("benchmark") if isinstance(meta.get("benchmark"), str) else None
+    split = meta.get("split") if isinstance(meta.get("split"), str) else None
     if isinstance(bench, str) and bench and bench not in BENCHMARKS:
         problems.append(f"unknown benchmark {bench!r}; expected one of {', '.join(BENCHMARKS)}")
     if isinstance(split, str) and split and split not in SPLITS:
@@ -342,7 +343,6 @@ class Built:
     reported: tuple[dict[str, Any], ...]
     markdown: str
     json_text: str
-    notes: tuple[str, ...] = field(default=())
 
 
 def _read_predictions_file(path: Path, read: Callable[[Path], Any]) -> Any:
@@ -352,7 +352,7 @@ def _read_predictions_file(path: Path, read: Callable[[Path], Any]) -> Any:
     try:
         with gzip.open(path, "rb") as fh:
             data = fh.read(MAX_PREDICTIONS_BYTES + 1)
-    except (OSError, EOFError) as e:
+    except (OSError, EOFError, zlib.error) as e:
         raise ValidationError(f"{path} cannot be scored", [f"not a readable gzip file ({e})"]) from None
     if len(data) > MAX_PREDICTIONS_BYTES:
         raise ValidationError(
@@ -432,21 +432,26 @@ def score_entry(entry: Entry, examples: Mapping[str, Examples]) -> Any:
         raise ValidationError(f"entry {entry.key}: predictions are for different data", problems)
 
     sizes = {s: len(ex) for s, ex in examples.items()}
+    splits_seen: list[str] = []
+
+    def set_sizes(bench: str, split: str) -> dict[str, int]:
+        splits_seen.append(split)
+        return sizes
 
     def read(path: Path) -> Any:
-        return read_predictions(path, set_sizes=lambda b, s: sizes, benchmark=entry.benchmark)
+        return read_predictions(path, set_sizes=set_sizes, benchmark=entry.benchmark)
 
+    title = f"entry {entry.key}: {entry.predictions.name} fails validation"
+    wrong_split = f"the file holds split {{!r}} but the entry is for {entry.split!r}"
     try:
         preds = _read_predictions_file(entry.predictions, read)
     except ValidationError as e:
-        raise ValidationError(
-            f"entry {entry.key}: {entry.predictions.name} fails validation", e.problems or [e.message]
-        ) from None
+        lines = e.problems or [e.message]
+        if splits_seen and splits_seen[0] != entry.split:
+            lines = [wrong_split.format(splits_seen[0]), *lines]
+        raise ValidationError(title, lines) from None
     if preds.split != entry.split:
-        raise ValidationError(
-            f"entry {entry.key}: {entry.predictions.name} fails validation",
-            [f"the file holds split {preds.split!r} but the entry is for {entry.split!r}"],
-        )
+        raise ValidationError(title, [wrong_split.format(preds.split)])
     return score(preds, examples)
 
 
@@ -842,7 +847,8 @@ def render_markdown(
                 vs_cell = "best" if row.group == 1 else "group best"
             else:
                 # The evaluator reports leader - row; the table shows row - leader.
-                vs_cell = f"{-vs.difference:+.2f} [{-vs.ci_high:+.2f}, {-vs.ci_low:+.2f}]"
+                diff, lo, hi = (-v + 0.0 for v in (vs.difference, vs.ci_high, vs.ci_low))  # + 0.0: no -0
+                vs_cell = f"{diff:+.2f} [{lo:+.2f}, {hi:+.2f}]".replace("-0.00", "+0.00")
             cells = [
                 str(row.group),
                 f"[{_cell(meta['name'])}]({ENTRIES}/{row.entry.key}/)",

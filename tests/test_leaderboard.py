@@ -6,7 +6,9 @@ import gzip
 import json
 import shutil
 import sys
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -38,8 +40,8 @@ def _predictions(data_dir: Path, tmp: Path, method: str) -> Path:
     return path
 
 
-def _add(root: Path, data_dir: Path, preds: Path, method: str, **over: object) -> lb.Entry:
-    kwargs: dict[str, object] = {
+def _add(root: Path, data_dir: Path, preds: Path, method: str, **over: Any) -> lb.Entry:
+    kwargs: dict[str, Any] = {
         "method": method,
         "name": method.upper(),
         "description": "a test entry",
@@ -54,7 +56,7 @@ def _add(root: Path, data_dir: Path, preds: Path, method: str, **over: object) -
         "data_dir": data_dir,
     }
     kwargs.update(over)
-    return lb.add_entry(root, preds, **kwargs)  # type: ignore[arg-type]
+    return lb.add_entry(root, preds, **kwargs)
 
 
 @pytest.fixture(scope="module")
@@ -78,9 +80,9 @@ def _check(root: Path, data_dir: Path) -> list[str]:
     return lb.check(root, data_dir, n_resamples=FAST)
 
 
-def _rewrite_gz(path: Path, edit: object) -> None:
+def _rewrite_gz(path: Path, edit: Callable[[str], str]) -> None:
     text = gzip.decompress(path.read_bytes()).decode()
-    path.write_bytes(gzip.compress(edit(text).encode()))  # type: ignore[operator]
+    path.write_bytes(gzip.compress(edit(text).encode()))
 
 
 # ----------------------------------------------------------------------------- rank groups
@@ -205,6 +207,39 @@ def test_build_then_check_passes(board: Path, v1_data_dir: Path) -> None:
     assert bd["rows"][0]["group"] == 1
     md = (board / lb.MARKDOWN).read_text()
     assert "## odmd-v1 test" in md and "(generator v1 + imported robot)" in md
+
+
+def test_identical_predictions_share_group_1_in_id_order(
+    board: Path, v1_data_dir: Path, v1_preds: dict[str, Path]
+) -> None:
+    _add(board, v1_data_dir, v1_preds["box_ls"], "a-copy")
+    built = lb.build(board, v1_data_dir, n_resamples=FAST)
+    rows = built.boards[0].rows
+    assert [(r.entry.method, r.group) for r in rows] == [("a-copy", 1), ("box-ls", 1), ("expansion", 2)]
+    assert rows[1].leader == "a-copy" and rows[1].versus_leader is not None
+    assert rows[1].versus_leader.difference == 0.0
+    assert "| 1 | [BOX-LS](entries/box-ls/odmd-v1-test/) |" in built.markdown
+    assert "| +0.00 [+0.00, +0.00] |" in built.markdown
+
+
+def test_plain_csv_predictions_are_read_too(board: Path, v1_data_dir: Path) -> None:
+    folder = board / lb.ENTRIES / "box-ls" / "odmd-v1-test"
+    gz = folder / "predictions.csv.gz"
+    (folder / "predictions.csv").write_bytes(gzip.decompress(gz.read_bytes()))
+    gz.unlink()
+    meta = yaml.safe_load((folder / "entry.yaml").read_text())
+    (folder / "entry.yaml").unlink()
+    (folder / "entry.json").write_text(json.dumps(meta | {"predictions": "predictions.csv"}))
+    before = json.loads((board / lb.JSON_FILE).read_text())["boards"][0]["rows"][0]
+    assert _check(board, v1_data_dir) == [
+        "leaderboard.json: boards[odmd-v1 test].rows[box-ls].predictions_file: committed "
+        "'predictions.csv.gz', build writes 'predictions.csv'",
+        "leaderboard.json: boards[odmd-v1 test].rows[box-ls].metadata.predictions: committed "
+        "'predictions.csv.gz', build writes 'predictions.csv'",
+    ]
+    after = json.loads(lb.build(board, v1_data_dir, n_resamples=FAST).json_text)["boards"][0]["rows"][0]
+    assert after["predictions_csv_sha256"] == before["predictions_csv_sha256"]
+    assert after["sets"] == before["sets"]
 
 
 def test_rescoring_matches_the_evaluator(board: Path, v1_data_dir: Path, v1_preds: dict[str, Path]) -> None:
