@@ -65,14 +65,24 @@ def v1_preds(v1_data_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> dic
     return {m: _predictions(v1_data_dir, tmp, m) for m in ("box_ls", "expansion")}
 
 
-@pytest.fixture
-def board(tmp_path: Path, v1_data_dir: Path, v1_preds: dict[str, Path]) -> Path:
-    """A built leaderboard folder with two odmd-v1 entries."""
-    root = tmp_path / "leaderboard"
+@pytest.fixture(scope="module")
+def built_board(
+    v1_data_dir: Path, v1_preds: dict[str, Path], tmp_path_factory: pytest.TempPathFactory
+) -> Path:
+    """A built leaderboard folder with two odmd-v1 entries (made once; tests get copies)."""
+    root = tmp_path_factory.mktemp("board") / "leaderboard"
     (root / lb.ENTRIES).mkdir(parents=True)
     _add(root, v1_data_dir, v1_preds["box_ls"], "box-ls")
     _add(root, v1_data_dir, v1_preds["expansion"], "expansion", calibrated=False)
     lb.write(root, lb.build(root, v1_data_dir, n_resamples=FAST), plot=False)
+    return root
+
+
+@pytest.fixture
+def board(built_board: Path, tmp_path: Path) -> Path:
+    """A fresh copy of the built leaderboard folder, free to change."""
+    root = tmp_path / "leaderboard"
+    shutil.copytree(built_board, root)
     return root
 
 
