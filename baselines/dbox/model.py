@@ -255,6 +255,22 @@ def make_inputs(examples: Examples, formulation: str = "rel") -> Inputs:
     return Inputs(x=x, scale=scale, target=target)
 
 
+def predict_depth(
+    model: DBox, examples: Examples, formulation: str, device: torch.device, chunk: int = 4096
+) -> np.ndarray:
+    """Depth in metres (N,) float64 for ``examples``, in chunks, without gradients."""
+    inp = make_inputs(examples, formulation)
+    out = np.empty(len(examples), dtype=np.float64)
+    was_training = model.training
+    model.eval()
+    with torch.no_grad():
+        for start in range(0, len(examples), chunk):
+            x = torch.from_numpy(inp.x[start : start + chunk]).to(device)
+            out[start : start + chunk] = model(x).double().cpu().numpy()
+    model.train(was_training)
+    return out * inp.scale
+
+
 def checkpoint_shapes(n_obs: int = N_OBS) -> dict[str, tuple[int, ...]]:
     """The original release's state-dict keys and their shapes."""
     cat = n_obs * N_FEATURES

@@ -39,7 +39,7 @@ import numpy as np
 import torch
 
 import odmd_bench
-from baselines.dbox.model import DBox, make_inputs
+from baselines.dbox.model import DBox, make_inputs, predict_depth
 from odmd_bench.errors import DataError, UsageError
 from odmd_bench.examples import Examples
 from odmd_bench.io import atomic_path, atomic_write, file_sha256
@@ -119,22 +119,6 @@ def batch_tensors(
     x = torch.from_numpy(inp.x).to(device)
     y = torch.from_numpy(inp.target).to(device)
     return x, y, inp.scale
-
-
-def predict_depth(
-    model: DBox, examples: Examples, formulation: str, device: torch.device, chunk: int = 4096
-) -> np.ndarray:
-    """Depth in metres (N,) float64 for ``examples``, in chunks, without gradients."""
-    inp = make_inputs(examples, formulation)
-    out = np.empty(len(examples), dtype=np.float64)
-    was_training = model.training
-    model.eval()
-    with torch.no_grad():
-        for start in range(0, len(examples), chunk):
-            x = torch.from_numpy(inp.x[start : start + chunk]).to(device)
-            out[start : start + chunk] = model(x).double().cpu().numpy()
-    model.train(was_training)
-    return out * inp.scale
 
 
 def validation_scores(

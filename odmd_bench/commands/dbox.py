@@ -79,7 +79,12 @@ def train_dbox(
 
     if threads:
         torch.set_num_threads(threads)
-    command = shlex.join(["odmd-bench", *sys.argv[1:]])
+    # The canonical command that reproduces this run (every option spelt out).
+    args = ["odmd-bench", "train-dbox", "--config", config, "--steps", str(steps), "--seed", str(seed)]
+    args += ["--val-every", str(val_every)] if val_every is not None else []
+    args += ["--schedule", schedule, "--threads", str(threads), "--device", device, "--out", str(out)]
+    args += ["--resume"] if resume else []
+    command = shlex.join(args)
     result = train(
         config,
         steps,

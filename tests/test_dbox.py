@@ -1,0 +1,420 @@
+"""DBox: the network's equations, the input formulations, checkpoints, training."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from collections import OrderedDict
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+torch = pytest.importorskip("torch")
+
+import odmd_bench  # noqa: E402
+from baselines import dbox  # noqa: E402
+from baselines.dbox.model import (  # noqa: E402
+    DBox,
+    checkpoint_shapes,
+    make_inputs,
+    predict_depth,
+    reference_forward,
+)
+from baselines.dbox.train import learning_rate, train  # noqa: E402
+from odmd_bench.errors import DataError, UsageError  # noqa: E402
+from odmd_bench.examples import Examples  # noqa: E402
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(autouse=True)
+def _one_thread() -> None:
+    torch.set_num_threads(1)
+
+
+def _sigmoid(z: np.ndarray) -> np.ndarray:
+    return 1.0 / (1.0 + np.exp(-z))
+
+
+def numpy_dbox(state: dict[str, np.ndarray], x: np.ndarray) -> np.ndarray:
+    """The paper's equations for one example at a time, gate by gate, in float64."""
+    hs = 128
+    w, u, b, v = state["W"], state["U"], state["bias"], state["V"]
+    out = []
+    for ex in x:
+        h = np.zeros(hs)
+        c = np.zeros(hs)
+        for x_t in ex:
+            col = [slice(k * hs, (k + 1) * hs) for k in range(4)]  # i, f, c, o
+            i = _sigmoid(x_t @ w[:, col[0]] + h @ u[:, col[0]] + b[col[0]] + c @ v[:, col[0]])
+            f = _sigmoid(x_t @ w[:, col[1]] + h @ u[:, col[1]] + b[col[1]] + c @ v[:, col[1]])
+            g = np.tanh(x_t @ w[:, col[2]] + h @ u[:, col[2]] + b[col[2]] + c @ v[:, col[2]])
+            c = f * c + i * g
+            # the output gate's peephole sees the NEW cell
+            o = _sigmoid(x_t @ w[:, col[3]] + h @ u[:, col[3]] + b[col[3]] + c @ v[:, col[3]])
+            h = o * np.tanh(c)
+        d = h
+        flat = ex.reshape(-1)
+        for k in range(6):
+            z = state[f"linears.{k}.weight"] @ np.concatenate([d, flat]) + state[f"linears.{k}.bias"]
+            d = np.maximum(z, 0.0)
+        out.append(float((state["linears.6.weight"] @ d + state["linears.6.bias"])[0]))
+    return np.array(out)
+
+
+def _random_state(seed: int, scale: float = 0.3) -> dict[str, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    return {k: rng.normal(0.0, scale / np.sqrt(s[-1]), s) for k, s in checkpoint_shapes().items()}
+
+
+def _model_from(state: dict[str, np.ndarray], dtype: torch.dtype = torch.float64) -> DBox:
+    model = DBox().to(dtype)
+    model.load_state_dict({k: torch.from_numpy(v).to(dtype) for k, v in state.items()})
+    return model
+
+
+def _examples(n: int, seed: int, perturbation: str = "both") -> Examples:
+    return odmd_bench.generate(n, "odmd", perturbation, seed)
+
+
+# --- the network ----------------------------------------------------------------------
+
+
+def test_forward_matches_the_equations_step_by_step() -> None:
+    state = _random_state(0, scale=1.5)  # large enough that every gate saturates somewhere
+    x = np.random.default_rng(1).normal(0.0, 1.0, (3, 10, 7))
+    expected = numpy_dbox(state, x)
+    model = _model_from(state)
+    with torch.no_grad():
+        got = model(torch.from_numpy(x)).numpy()
+        ref = reference_forward(model, torch.from_numpy(x)).numpy()
+    np.testing.assert_allclose(got, expected, rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(ref, expected, rtol=1e-10, atol=1e-12)
+    assert np.ptp(expected) > 0.1  # a case where a wrong gate would show
+
+
+def test_fast_forward_gradients_match_the_reference() -> None:
+    model = DBox(generator=torch.Generator().manual_seed(3)).double()
+    x = torch.randn(4, 10, 7, dtype=torch.float64, generator=torch.Generator().manual_seed(4))
+    model(x).square().sum().backward()
+    fast = {k: p.grad.clone() for k, p in model.named_parameters()}
+    model.zero_grad()
+    reference_forward(model, x).square().sum().backward()
+    for k, p in model.named_parameters():
+        np.testing.assert_allclose(fast[k].numpy(), p.grad.numpy(), rtol=1e-9, atol=1e-12, err_msg=k)
+
+
+def test_parameter_layout_is_the_original_release() -> None:
+    shapes = {k: tuple(v.shape) for k, v in DBox().state_dict().items()}
+    assert shapes == checkpoint_shapes()
+    assert shapes["linears.0.weight"] == (256, 198)
+    assert shapes["linears.5.weight"] == (256, 326)
+    assert shapes["linears.6.weight"] == (1, 256)
+    assert list(shapes)[:4] == ["W", "U", "bias", "V"]
+
+
+def test_initial_weights_come_from_the_seed() -> None:
+    a = DBox(generator=torch.Generator().manual_seed(5)).state_dict()
+    b = DBox(generator=torch.Generator().manual_seed(5)).state_dict()
+    c = DBox(generator=torch.Generator().manual_seed(6)).state_dict()
+    assert all(torch.equal(a[k], b[k]) for k in a)
+    assert not torch.equal(a["U"], c["U"])
+
+
+# --- input formulations ----------------------------------------------------------------
+
+
+def _hand_example() -> Examples:
+    n_obs = 10
+    boxes = np.tile(np.array([0.5, 0.4, 0.1, 0.2]), (1, n_obs, 1)) + 0.01 * np.arange(n_obs)[None, :, None]
+    camera = np.zeros((1, n_obs, 3))
+    camera[0, :, 2] = np.linspace(-0.3, 0.0, n_obs)  # first position 0.3 m behind
+    camera[0, :, 0] = np.linspace(0.4, 0.0, n_obs)  # and 0.4 m to the side: L = 0.5
+    return Examples(
+        boxes=boxes,
+        detected=np.ones((1, n_obs), bool),
+        camera=camera,
+        depth=np.array([0.8]),
+    )
+
+
+def test_f_rel_inputs_are_increments_of_positions_over_the_first_distance() -> None:
+    ex = _hand_example()
+    inp = make_inputs(ex, "rel")
+    assert inp.x.dtype == np.float32 and inp.x.shape == (1, 10, 7)
+    np.testing.assert_allclose(inp.scale, [0.5], rtol=1e-6)
+    np.testing.assert_allclose(inp.target, [0.8 / 0.5], rtol=1e-6)
+    np.testing.assert_allclose(inp.x[0, :, :4], ex.boxes[0], rtol=1e-6)
+    np.testing.assert_array_equal(inp.x[0, 0, 4:], [0.0, 0.0, 0.0])
+    step = np.array([-0.4 / 9, 0.0, 0.3 / 9]) / 0.5
+    np.testing.assert_allclose(inp.x[0, 1:, 4:], np.tile(step, (9, 1)), rtol=1e-5, atol=1e-7)
+
+
+def test_f_abs_inputs_are_positions_as_they_are() -> None:
+    ex = _hand_example()
+    inp = make_inputs(ex, "abs")
+    np.testing.assert_allclose(inp.x[0, :, 4:], ex.camera[0], rtol=1e-6)
+    np.testing.assert_array_equal(inp.scale, [1.0])
+    np.testing.assert_allclose(inp.target, [0.8], rtol=1e-6)
+
+
+def test_missing_detections_are_filled_with_the_shared_rule() -> None:
+    ex = _examples(6, 7)
+    detected = ex.detected.copy()
+    detected[0, 3] = False
+    detected[2, [0, 9]] = False
+    boxes = ex.boxes.copy()
+    boxes[~detected] = 0.0  # as the original files store a missing detection
+    holed = Examples(boxes=boxes, detected=detected, camera=ex.camera, depth=ex.depth)
+    filled = Examples(
+        boxes=odmd_bench.fill_missing(boxes, detected),
+        detected=np.ones_like(detected),
+        camera=ex.camera,
+        depth=ex.depth,
+    )
+    np.testing.assert_array_equal(make_inputs(holed).x, make_inputs(filled).x)
+    assert make_inputs(holed).x[0, 3, 0] == np.float32(boxes[0, 2, 0])
+
+
+def test_f_rel_refuses_examples_without_camera_motion() -> None:
+    ex = _hand_example()
+    still = Examples(boxes=ex.boxes, detected=ex.detected, camera=np.zeros_like(ex.camera), depth=ex.depth)
+    with pytest.raises(DataError, match="camera motion"):
+        make_inputs(still, "rel")
+    with pytest.raises(DataError, match="rel, abs"):
+        make_inputs(ex, "relative")
+
+
+@pytest.mark.parametrize("s", [0.01, 0.37, 4.0, 250.0])
+def test_f_rel_prediction_scales_with_the_camera_motion(s: float) -> None:
+    ex = _examples(64, 8)
+    scaled = Examples(boxes=ex.boxes, detected=ex.detected, camera=ex.camera * s, depth=ex.depth)
+    model = DBox(generator=torch.Generator().manual_seed(9))
+    cpu = torch.device("cpu")
+    base = predict_depth(model, ex, "rel", cpu)
+    np.testing.assert_allclose(predict_depth(model, scaled, "rel", cpu), s * base, rtol=2e-5)
+    # f_Abs has no such property: its output does not follow the scale.
+    absolute = predict_depth(model, ex, "abs", cpu)
+    assert not np.allclose(predict_depth(model, scaled, "abs", cpu), s * absolute, rtol=1e-3)
+
+
+# --- checkpoints -----------------------------------------------------------------------
+
+
+def _save(obj: object, path: Path) -> Path:
+    torch.save(obj, path)
+    return path
+
+
+def test_a_checkpoint_in_the_original_layout_loads_and_runs(tmp_path: Path) -> None:
+    state = _random_state(10)
+    # The original release saved net.state_dict(): an OrderedDict of float32 tensors.
+    ckpt = OrderedDict((k, torch.from_numpy(v).float()) for k, v in state.items())
+    path = _save(ckpt, tmp_path / "DBox_pretrained_paper.pt")
+    ex = _examples(50, 11)
+    got = dbox.predict(ex, weights=path)
+    inp = make_inputs(ex, "rel")
+    expected = (
+        numpy_dbox({k: v.double().numpy() for k, v in ckpt.items()}, inp.x.astype(np.float64)) * inp.scale
+    )
+    assert got.shape == (50,) and got.dtype == np.float64
+    np.testing.assert_allclose(got, expected, rtol=1e-4)
+
+
+def test_predict_batches_give_the_same_numbers(tmp_path: Path) -> None:
+    path = _save(
+        OrderedDict((k, torch.from_numpy(v).float()) for k, v in _random_state(12).items()), tmp_path / "w.pt"
+    )
+    ex = _examples(33, 13)
+    whole = dbox.predict(ex, weights=path)
+    np.testing.assert_allclose(dbox.predict(ex, weights=path, chunk=5), whole, rtol=1e-6)
+    np.testing.assert_allclose(dbox.predict(ex.subset(slice(10, 20)), weights=path), whole[10:20], rtol=1e-6)
+
+
+def test_a_corrupt_file_is_a_clear_error(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.pt"
+    bad.write_bytes(b"\x00not a checkpoint" * 10)
+    with pytest.raises(DataError, match="not a loadable DBox checkpoint"):
+        dbox.load_model(bad)
+    with pytest.raises(DataError, match="not found"):
+        dbox.load_model(tmp_path / "missing.pt")
+
+
+def test_a_file_that_would_run_code_is_refused(tmp_path: Path) -> None:
+    path = _save({"W": Path("/etc/passwd")}, tmp_path / "code.pt")  # not a plain tensor
+    with pytest.raises(DataError, match="weights_only"):
+        dbox.load_model(path)
+
+
+def test_wrong_keys_and_shapes_are_named(tmp_path: Path) -> None:
+    state = {k: torch.zeros(s) for k, s in checkpoint_shapes().items()}
+    del state["V"]
+    state["W"] = torch.zeros(14, 512)  # an input_obs = 2 network
+    state["extra"] = torch.zeros(1)
+    with pytest.raises(DataError) as info:
+        dbox.load_model(_save(state, tmp_path / "wrong.pt"))
+    text = info.value.render()
+    assert "missing keys: V" in text
+    assert "W: expected shape (7, 512), got (14, 512)" in text
+    assert "unexpected keys: extra" in text
+    with pytest.raises(DataError, match="not a DBox state dict"):
+        dbox.load_model(_save([1, 2, 3], tmp_path / "list.pt"))
+    nan = {k: torch.zeros(s) for k, s in checkpoint_shapes().items()}
+    nan["U"][0, 0] = float("nan")
+    with pytest.raises(DataError, match="U: contains NaN"):
+        dbox.load_model(_save(nan, tmp_path / "nan.pt"))
+
+
+@pytest.mark.parametrize("name", ["p", "p-z"])
+def test_shipped_weights_load_and_record_how_they_were_made(name: str) -> None:
+    path = dbox.SHIPPED[name]
+    model, formulation = dbox.load_model(path)
+    assert formulation == "rel"
+    assert all(v.dtype == torch.float32 for v in model.state_dict().values())
+    record = json.loads(path.with_suffix(".json").read_text())
+    assert record["config"]["name"] == name
+    assert record["command"].startswith("odmd-bench train-dbox")
+    assert f"--config {name}" in record["command"]
+    assert record["best_step"] <= record["steps_done"] == record["steps"]
+    assert record["weights_sha256"] == odmd_bench.io.file_sha256(path)
+    assert path.stat().st_size < 5_000_000
+
+
+def test_shipped_p_weights_are_the_default_and_estimate_depth() -> None:
+    ex = _examples(500, 14, "normal")
+    pred = dbox.predict(ex)
+    err = np.abs(pred - ex.depth) / ex.depth * 100
+    assert np.isfinite(pred).all()
+    assert err.mean() < 5.0  # Box_LS is exact here; an untrained network is far off
+
+
+# --- training --------------------------------------------------------------------------
+
+
+def _tiny_val() -> dict[str, Examples]:
+    return {"normal": _examples(64, 100, "normal"), "camera": _examples(64, 101, "camera")}
+
+
+def test_cosine_schedule_goes_from_1e3_to_the_floor() -> None:
+    assert learning_rate(0, 1000, "cosine", 0.01) == pytest.approx(1e-3)
+    assert learning_rate(999, 1000, "cosine", 0.01) == pytest.approx(1e-5)
+    assert learning_rate(500, 1000, "cosine", 0.01) < learning_rate(400, 1000, "cosine", 0.01)
+    assert learning_rate(700, 1000, "constant", 0.01) == 1e-3
+
+
+def test_a_few_hundred_steps_lower_the_loss(tmp_path: Path) -> None:
+    result = train(
+        "p", 240, tmp_path / "run", seed=0, device="cpu", val_every=120,
+        val_sets=_tiny_val(), batch_size=64, progress=None,
+    )  # fmt: skip
+    losses = np.array(result.losses)
+    assert len(losses) == 240
+    assert losses[-40:].mean() < 0.6 * losses[:20].mean()
+    assert result.best_scores["all"] < 100.0
+    record = json.loads((tmp_path / "run" / "dbox_p.json").read_text())
+    assert record["best_step"] == result.best_step
+    assert record["val_mean_percent_error"]["all"] == pytest.approx(result.best_scores["all"])
+    logged = [json.loads(line) for line in (tmp_path / "run" / "log.jsonl").read_text().splitlines()]
+    assert [e["step"] for e in logged] == [120, 240]
+    dbox.load_model(result.weights)  # the best weights are a loadable original-layout file
+
+
+def _weights(path: Path) -> dict[str, torch.Tensor]:
+    return torch.load(path, weights_only=True)
+
+
+def test_training_is_deterministic_and_resumes_exactly(tmp_path: Path) -> None:
+    opts = {
+        "seed": 3,
+        "device": "cpu",
+        "val_every": 10,
+        "val_sets": _tiny_val(),
+        "batch_size": 32,
+        "progress": None,
+    }
+    a = train("p", 30, tmp_path / "a", **opts)  # type: ignore[arg-type]
+    b = train("p", 30, tmp_path / "b", **opts)  # type: ignore[arg-type]
+    assert a.losses == b.losses
+    # Interrupted in step 21 (the state file holds step 20), then resumed to 30.
+    with pytest.raises(_Interrupt):
+        train("p", 30, tmp_path / "c", on_step=_stop_at(21), **opts)  # type: ignore[arg-type]
+    c = train("p", 30, tmp_path / "c", resume=True, **opts)  # type: ignore[arg-type]
+    assert c.losses == a.losses[20:]
+    wa, wc = _weights(a.weights), _weights(c.weights)
+    assert all(torch.equal(wa[k], wc[k]) for k in wa)
+    other = train("p", 30, tmp_path / "d", **{**opts, "seed": 4})  # type: ignore[arg-type]
+    assert other.losses != a.losses
+
+
+class _Interrupt(Exception):
+    pass
+
+
+def _stop_at(step: int):  # type: ignore[no-untyped-def]
+    def on_step(s: int, loss: float) -> None:
+        if s == step:
+            raise _Interrupt
+
+    return on_step
+
+
+def test_training_refuses_to_overwrite_or_resume_the_wrong_run(tmp_path: Path) -> None:
+    opts = {"device": "cpu", "val_every": 5, "val_sets": _tiny_val(), "batch_size": 16, "progress": None}
+    train("p", 5, tmp_path / "run", **opts)  # type: ignore[arg-type]
+    with pytest.raises(UsageError, match="--resume"):
+        train("p", 5, tmp_path / "run", **opts)  # type: ignore[arg-type]
+    with pytest.raises(UsageError, match="steps: run has 5, asked for 9"):
+        train("p", 9, tmp_path / "run", resume=True, **opts)  # type: ignore[arg-type]
+    with pytest.raises(UsageError, match="nothing to resume"):
+        train("p", 5, tmp_path / "none", resume=True, **opts)  # type: ignore[arg-type]
+    with pytest.raises(UsageError, match="p, ns, abs, p-z"):
+        train("q", 5, tmp_path / "x", **opts)  # type: ignore[arg-type]
+
+
+def test_train_dbox_command(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from click.testing import CliRunner
+
+    import baselines.dbox.train as train_module
+    from odmd_bench.cli import cli
+
+    monkeypatch.setattr(train_module.odmd_bench, "load_split", lambda *a, **k: _tiny_val())
+    out = tmp_path / "run"
+    args = [
+        "train-dbox",
+        "--config",
+        "p",
+        "--steps",
+        "4",
+        "--val-every",
+        "2",
+        "--out",
+        str(out),
+        "--threads",
+        "1",
+    ]
+    result = CliRunner().invoke(cli, args)
+    assert result.exit_code == 0, result.output
+    assert "best step" in result.output and (out / "dbox_p.pt").is_file()
+    assert "val All" in result.output  # the progress line
+    record = json.loads((out / "dbox_p.json").read_text())
+    assert record["command"] == (
+        f"odmd-bench train-dbox --config p --steps 4 --seed 0 --val-every 2 --schedule cosine "
+        f"--threads 1 --device auto --out {out}"
+    )
+    again = CliRunner().invoke(cli, args)
+    assert again.exit_code == 2 and "--resume" in again.output
+    resumed = CliRunner().invoke(cli, [*args, "--resume"])
+    assert resumed.exit_code == 0, resumed.output
+
+
+# --- imports ---------------------------------------------------------------------------
+
+
+def test_the_package_and_the_evaluator_never_import_torch() -> None:
+    code = (
+        "import sys; import odmd_bench, odmd_bench.evaluate, odmd_bench.metrics, odmd_bench.cli, "
+        "baselines.dbox; assert 'torch' not in sys.modules, 'torch was imported'"
+    )
+    subprocess.run([sys.executable, "-c", code], check=True, cwd=REPO)
