@@ -1072,8 +1072,22 @@ def _cells(line: str) -> list[str]:
     return [c.strip() for c in re.split(r"(?<!\\)\|", line.strip())[1:-1]]
 
 
+def _row_key(lines: list[str], i: int) -> tuple[str, str, list[str]] | None:
+    """(table title, row name, header) of a table's data row, or None for other lines."""
+    ctx = _table_context(lines, i)
+    if ctx is None:
+        return None
+    title, header = ctx
+    cells = _cells(lines[i])
+    if len(cells) != len(header) or cells == header or all(set(c) <= set("-: ") for c in cells):
+        return None
+    name = cells[1] if header[0] == "Group" and len(cells) > 1 else cells[0]
+    return title, re.sub(r"^\[(.*)\]\(.*\)$", r"\1", name), header
+
+
 def diff_markdown(committed: str, built: str, name: str = MARKDOWN, limit: int = 20) -> list[str]:
-    """One line per difference; table cells are named by table, row (method) and column."""
+    """One line per difference. Table rows are matched by table and row name (the method),
+    so a changed cell is named by table, row and column even when rows moved."""
     import difflib
 
     old, new = committed.splitlines(), built.splitlines()
@@ -1082,29 +1096,29 @@ def diff_markdown(committed: str, built: str, name: str = MARKDOWN, limit: int =
     for tag, i1, i2, j1, j2 in sm.get_opcodes():
         if tag == "equal":
             continue
-        pairs = list(zip(range(i1, i2), range(j1, j2), strict=False)) if tag == "replace" else []
-        for i, j in pairs:
-            ctx_a, ctx_b = _table_context(old, i), _table_context(new, j)
-            ca, cb = _cells(old[i]), _cells(new[j])
-            if ctx_a and ctx_b and ctx_a == ctx_b and len(ca) == len(cb) == len(ctx_a[1]):
-                title, header = ctx_a
-                row = re.sub(
-                    r"^\[(.*)\]\(.*\)$", r"\1", cb[1] if len(cb) > 1 and header[0] == "Group" else cb[0]
-                )
-                for col, x, y in zip(header, ca, cb, strict=True):
-                    if x != y:
-                        out.append(
-                            f"{name} line {i + 1}: table '{title}', row '{row}', column '{col}': "
-                            f"committed {x!r}, build writes {y!r}"
-                        )
-            else:
+        old_rows = {k[:2]: (i, k[2]) for i in range(i1, i2) if (k := _row_key(old, i))}
+        new_rows = {k[:2]: (j, k[2]) for j in range(j1, j2) if (k := _row_key(new, j))}
+        matched = {k for k in old_rows if k in new_rows and old_rows[k][1] == new_rows[k][1]}
+        for (title, row), (i, header) in old_rows.items():
+            if (title, row) not in matched:
+                continue
+            j = new_rows[(title, row)][0]
+            for col, x, y in zip(header, _cells(old[i]), _cells(new[j]), strict=True):
+                if x != y:
+                    out.append(
+                        f"{name} line {i + 1}: table '{title}', row '{row}', column '{col}': "
+                        f"committed {x!r}, build writes {y!r}"
+                    )
+        rest_old = [i for i in range(i1, i2) if (k := _row_key(old, i)) is None or k[:2] not in matched]
+        rest_new = [j for j in range(j1, j2) if (k := _row_key(new, j)) is None or k[:2] not in matched]
+        if len(rest_old) == len(rest_new):  # lines changed in place
+            for i, j in zip(rest_old, rest_new, strict=True):
                 out.append(f"{name} line {i + 1}: committed {old[i]!r}, build writes {new[j]!r}")
-        if tag in ("delete", "replace"):
-            for i in range(i1 + len(pairs), i2):
-                out.append(f"{name} line {i + 1}: committed {old[i]!r}, build does not write it")
-        if tag in ("insert", "replace"):
-            for j in range(j1 + len(pairs), j2):
-                out.append(f"{name} line {i1 + 1 + (j - j1)}: missing, build writes {new[j]!r}")
+            continue
+        for i in rest_old:
+            out.append(f"{name} line {i + 1}: committed {old[i]!r}, build does not write it")
+        for j in rest_new:
+            out.append(f"{name} line {i1 + 1}: missing, build writes {new[j]!r}")
     if len(out) > limit:
         out = [*out[:limit], f"{name}: ... and {len(out) - limit} more differences"]
     return out

@@ -447,3 +447,38 @@ def test_a_copy_of_the_committed_leaderboard_with_one_changed_digit_fails(
     assert (
         len(problems) == 1 and "column 'All': committed '**11.84**', build writes '**11.83**'" in problems[0]
     )
+
+
+def test_cli_add_makes_an_entry_that_build_ranks(
+    board: Path, v1_data_dir: Path, v1_preds: dict[str, Path], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(lb, "RANK_RESAMPLES", FAST)
+    runner = CliRunner()
+    common = ["--root", str(board), "--data-dir", str(v1_data_dir)]
+    args = ["leaderboard", "add", str(v1_preds["expansion"]), "--method", "exp2", "--name", "Exp 2"]
+    args += [
+        "--description",
+        "d",
+        "--paper",
+        "none",
+        "--code",
+        "https://example.org",
+        "--training-data",
+        "none",
+    ]
+    args += [
+        "--command",
+        "odmd-bench baseline expansion",
+        "--benchmark",
+        "odmd-v1",
+        "--uncalibrated",
+        *common,
+    ]
+    added = runner.invoke(cli, args)
+    assert added.exit_code == 0, added.output
+    meta = yaml.safe_load((board / lb.ENTRIES / "exp2" / "odmd-v1-test" / "entry.yaml").read_text())
+    assert meta["calibrated"] is False and meta["split"] == "test" and len(meta["sets_content_sha256"]) == 4
+    stale = runner.invoke(cli, ["leaderboard", "check", *common])
+    assert stale.exit_code == 2 and "build writes '| 2 | [Exp 2](entries/exp2/odmd-v1-test/)" in stale.output
+    assert runner.invoke(cli, ["leaderboard", "build", "--no-plot", *common]).exit_code == 0
+    assert runner.invoke(cli, ["leaderboard", "check", *common]).exit_code == 0
