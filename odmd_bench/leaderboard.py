@@ -365,7 +365,7 @@ def _read_predictions_file(path: Path, read: Callable[[Path], Any]) -> Any:
 
 
 def data_version(examples: Mapping[str, Examples]) -> str:
-    """How the sets were made, e.g. ``generator v1 + imported robot`` or ``imported``."""
+    """How the sets were made, e.g. ``generator v1 + imported robot`` or ``original release``."""
     parts = []
     gens = sorted(
         {int(ex.attrs["generator_version"]) for ex in examples.values() if "generator_version" in ex.attrs}
@@ -376,7 +376,7 @@ def data_version(examples: Mapping[str, Examples]) -> str:
     if imported and gens:
         parts.append("imported " + ", ".join(imported))
     elif imported:
-        parts.append("imported original release")
+        parts.append("original release")
     return " + ".join(parts)
 
 
@@ -828,7 +828,7 @@ def render_markdown(
         lines += [
             f"## {bd.benchmark} {bd.split}",
             "",
-            f"Data: {desc} ({bd.data_version}); content SHA-256 {hashes}.",
+            f"Data: {desc}. Version: {bd.data_version}; content SHA-256 {hashes}.",
             "",
         ]
         head = ["Group", "Method", *[_SET_TITLES.get(s, s) for s in bd.sets], "All", "vs group best"]
