@@ -7,3 +7,5 @@ ruff check .
 ruff format --check .
 mypy
 pytest
+# Re-score every leaderboard entry from its committed predictions; fails on any difference.
+odmd-bench leaderboard check --original "${ODMD_ORIGINAL:-../shared/odmd-original}"
