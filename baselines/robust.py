@@ -52,11 +52,16 @@ Estimation:
    ``sum_i log det Sigma_i`` plus the model's ``penalty`` (a prior log-odds, chosen on
    val).
 4. Bounds: ``Z`` stays above ``max_i C~_Zi + min_depth``, so the object is in front of
-   the camera at every used observation.
-5. Fallbacks, counted by :func:`predict_report`: where no fit gives a finite depth
-   inside the bound, the linear start is returned (``fit_failed``); an example with
-   fewer than two usable observations gets depth 0, as Box_LS does
-   (``too_few_detections``).
+   the camera at every used observation, and below ``max_depth_ratio`` times the
+   camera's travel (the farthest used camera position from the last). Without the far
+   bound a robust fit of tiny, noisy boxes can run away towards ``Z = infinity``
+   (boxes that neither grow nor shift, the changes written off as outliers); a fit
+   that ends on the far bound found no depth the motion can resolve and is not
+   eligible.
+5. Fallbacks, counted by :func:`predict_report`: where no noise model gives an
+   eligible fit, the linear start (clipped to the bounds) is returned
+   (``fit_failed``); an example with fewer than two usable observations gets depth 0,
+   as Box_LS does (``too_few_detections``).
 
 Missing detections (``detected`` False) are left out of the fit (``missing="omit"``,
 the default: a box copied from another observation would sit at the wrong camera
@@ -120,23 +125,26 @@ class RobustParams:
         tolerance: an example stops when no unknown moves by more than this.
         linear_iterations: reweighting rounds of the linear start.
         min_depth: the object's smallest allowed depth at any observation, metres.
+        max_depth_ratio: the largest allowed depth, as a multiple of the camera's
+            travel (ODMD's sets stay below 20).
     """
 
     loss: str = "cauchy"
-    loss_scale: float = 3.0
+    loss_scale: float = 4.0
     noise_models: tuple[NoiseModel, ...] = field(
-        default_factory=lambda: (NoiseModel(2e-4, 0.02, 0.0), NoiseModel(3e-4, 0.005, 40.0))
+        default_factory=lambda: (NoiseModel(2e-4, 0.02, 0.0), NoiseModel(3e-4, 1e-3, 0.0))
     )
     iterations: int = 10
     tolerance: float = 1e-9
-    linear_iterations: int = 3
+    linear_iterations: int = 0
     min_depth: float = 1e-3
+    max_depth_ratio: float = 30.0
 
     def __post_init__(self) -> None:
         problems = []
         if self.loss not in LOSSES:
             problems.append(f"loss: {self.loss!r} is not one of {', '.join(LOSSES)}")
-        for name in ("loss_scale", "tolerance", "min_depth"):
+        for name in ("loss_scale", "tolerance", "min_depth", "max_depth_ratio"):
             v = getattr(self, name)
             if not (isinstance(v, int | float) and np.isfinite(v) and v > 0):
                 problems.append(f"{name}: expected a positive number, got {v!r}")
@@ -168,6 +176,9 @@ class RobustParams:
 DEFAULT_PARAMS = RobustParams()
 
 Intrinsics = tuple[float, float, float, float, float, float]
+
+#: Examples fitted together; larger batches are split (the results do not change).
+CHUNK = 1024
 
 
 def predict(
@@ -277,8 +288,16 @@ def fit(
         ``(depths (N,), counts)`` as :func:`predict_report`.
     """
     n = boxes.shape[0]
+    if n > CHUNK:
+        # Examples are independent; chunks keep the working arrays in cache.
+        parts = [
+            fit(boxes[s : s + CHUNK], usable[s : s + CHUNK], camera[s : s + CHUNK], cam_model, params)
+            for s in range(0, n, CHUNK)
+        ]
+        counts = {k: sum(c[k] for _, c in parts) for k in parts[0][1]}
+        return np.concatenate([d for d, _ in parts]), counts
     enough = usable.sum(axis=1) >= 2
-    base = _Problem.build(boxes, usable, camera, cam_model, params.min_depth)
+    base = _Problem.build(boxes, usable, camera, cam_model, params.min_depth, params.max_depth_ratio)
     z0 = _linear_start(base, params)
     depth = z0.copy()
     best = np.full(n, np.inf)
@@ -291,7 +310,8 @@ def fit(
             if j == 0:
                 z_first = np.where(np.isfinite(z) & (z >= base.z_low), z, z0)
             crit = crit + nm.penalty
-            ok = np.isfinite(z) & (z >= base.z_low) & np.isfinite(crit)
+            # A fit that ends on the far bound found no depth in range: not eligible.
+            ok = np.isfinite(z) & (z >= base.z_low) & (z < base.z_high * (1 - 1e-9)) & np.isfinite(crit)
             take = ok & (crit < best)
             depth = np.where(take, z, depth)
             best = np.where(take, crit, best)
@@ -329,6 +349,7 @@ class _Problem:
     m: np.ndarray
     cam: np.ndarray
     z_low: np.ndarray
+    z_high: np.ndarray
     a: float
     b: float
 
@@ -340,6 +361,7 @@ class _Problem:
         camera: np.ndarray,
         cam_model: tuple[float, float, float, float] | None,
         min_depth: float,
+        max_depth_ratio: float,
     ) -> _Problem:
         a, b, u0, v0 = cam_model if cam_model is not None else (0.0, 0.0, 0.0, 0.0)
         coords = (0, 1, 2, 3) if cam_model is not None else (2, 3)
@@ -351,7 +373,9 @@ class _Problem:
         k = (-a * cam[0], -b * cam[1], zero, zero)
         z_low = np.max(np.where(use, cam[2], -np.inf), axis=0) + min_depth
         z_low = np.where(np.isfinite(z_low), z_low, min_depth)
-        return cls(coords, g, k, use.astype(np.float64), cam, z_low, a, b)
+        travel = np.sqrt((cam**2).sum(axis=0)).max(axis=0)  # farthest used camera position
+        z_high = np.maximum(max_depth_ratio * travel, z_low + min_depth)
+        return cls(coords, g, k, use.astype(np.float64), cam, z_low, z_high, a, b)
 
     def take(self, keep: np.ndarray) -> _Problem:
         """The problem restricted to the examples where ``keep`` (N,) is True."""
@@ -362,6 +386,7 @@ class _Problem:
             self.m[:, keep],
             self.cam[:, :, keep],
             self.z_low[keep],
+            self.z_high[keep],
             self.a,
             self.b,
         )
@@ -417,7 +442,7 @@ def _linear_start(prob: _Problem, params: RobustParams) -> np.ndarray:
             dc.append(dcj)
         with np.errstate(divide="ignore", invalid="ignore"):
             z_new = num / den
-        z = np.where(np.isfinite(z_new), np.maximum(z_new, prob.z_low), prob.z_low)
+        z = np.where(np.isfinite(z_new), np.clip(z_new, prob.z_low, prob.z_high), prob.z_low)
         if it == params.linear_iterations:
             break
         zi = np.maximum(z - cz, params.min_depth)
@@ -475,7 +500,7 @@ def _gauss_newton(
     out_cost = np.empty(n)
     ids = np.arange(n)
     pr = prob
-    state = _evaluate(pr, theta, delta, var_box, c2, params, inv_cam_var)
+    state: tuple[np.ndarray, ...] = _evaluate(pr, theta, delta, var_box, c2, params, inv_cam_var)
     lam = np.full(n, 1e-4)
     for _ in range(params.iterations):
         cost, zi, p, r, s = state
@@ -531,7 +556,7 @@ def _gauss_newton(
             new_delta[1] = -prob.b * fac * sv[1]
         new = theta + step
         z_floor = np.max(np.where(pr.m > 0, pr.cam[2] + new_delta[2], -np.inf), axis=0) + params.min_depth
-        new[0] = np.maximum(new[0], np.maximum(pr.z_low, z_floor))
+        new[0] = np.minimum(np.maximum(new[0], np.maximum(pr.z_low, z_floor)), pr.z_high)
         new_state = _evaluate(pr, new, new_delta, var_box, c2, params, inv_cam_var)
         better = np.isfinite(new_state[0]) & (new_state[0] <= cost)
         theta = np.where(better, new, theta)
