@@ -227,8 +227,25 @@ def predict_report(
 
     Returns:
         ``(depths (N,), counts)`` with ``counts`` = ``{"fit_failed": k,
-        "too_few_detections": m, "n": N}`` plus, per noise model ``j``, how many
-        examples kept it (``"noise_model_j"``).
+        "too_few_detections": m, "n": N}``.
+    """
+    depth, _, counts = predict_details(examples, params, mode=mode, missing=missing, intrinsics=intrinsics)
+    return depth, counts
+
+
+def predict_details(
+    examples: Examples,
+    params: RobustParams = DEFAULT_PARAMS,
+    *,
+    mode: Mode = "full",
+    missing: Missing = "omit",
+    intrinsics: Intrinsics | None = None,
+) -> tuple[np.ndarray, np.ndarray, dict[str, int]]:
+    """Like :func:`predict_report`, also returning which noise model each example kept.
+
+    Returns:
+        ``(depths (N,), model (N,) int, counts)``: ``model`` indexes
+        ``params.noise_models``, -1 where a fallback gave the depth.
     """
     if mode not in MODES:
         raise UsageError(f"mode {mode!r} is not one of {', '.join(MODES)}")
@@ -273,7 +290,7 @@ def fit(
     camera: np.ndarray,
     cam_model: tuple[float, float, float, float] | None,
     params: RobustParams = DEFAULT_PARAMS,
-) -> tuple[np.ndarray, dict[str, int]]:
+) -> tuple[np.ndarray, np.ndarray, dict[str, int]]:
     """The robust fit on arrays (see the module docstring).
 
     Args:
@@ -285,7 +302,7 @@ def fit(
         params: hyperparameters.
 
     Returns:
-        ``(depths (N,), counts)`` as :func:`predict_report`.
+        ``(depths (N,), model (N,), counts)`` as :func:`predict_details`.
     """
     n = boxes.shape[0]
     if n > CHUNK:
@@ -294,8 +311,12 @@ def fit(
             fit(boxes[s : s + CHUNK], usable[s : s + CHUNK], camera[s : s + CHUNK], cam_model, params)
             for s in range(0, n, CHUNK)
         ]
-        counts = {k: sum(c[k] for _, c in parts) for k in parts[0][1]}
-        return np.concatenate([d for d, _ in parts]), counts
+        counts = {k: sum(part[2][k] for part in parts) for k in parts[0][2]}
+        return (
+            np.concatenate([part[0] for part in parts]),
+            np.concatenate([part[1] for part in parts]),
+            counts,
+        )
     enough = usable.sum(axis=1) >= 2
     base = _Problem.build(boxes, usable, camera, cam_model, params.min_depth, params.max_depth_ratio)
     z0 = _linear_start(base, params)
@@ -325,10 +346,7 @@ def fit(
         "too_few_detections": int((~enough).sum()),
         "n": int(n),
     }
-    if params.iterations > 0:
-        for j in range(len(params.noise_models)):
-            counts[f"noise_model_{j}"] = int((enough & (chosen == j)).sum())
-    return depth, counts
+    return depth, np.where(enough, chosen, -1), counts
 
 
 @dataclass(frozen=True)
