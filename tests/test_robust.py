@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -255,3 +256,54 @@ def test_odms_detection_sets_need_scale_mode(paper_data_dir: Path) -> None:
     depth, counts = robust.predict_report(ex, mode="scale")
     assert depth.shape == (len(ex),) and np.all(np.isfinite(depth))
     assert counts["fit_failed"] == 0
+
+
+def test_fit_minimises_the_stated_objective() -> None:
+    """Independent check with torch autograd: the depth found minimises the profile of
+    sum_i rho(|r_i|^2 / sigma_box^2) + |delta|^2 / sigma_camera^2 (other unknowns optimised)."""
+    torch = pytest.importorskip("torch")
+    torch.set_num_threads(1)
+    ex = odmd_bench.generate(3, perturbation="both", rng=3)
+    nm = DEFAULT_PARAMS.noise_models[0]
+    params = replace(DEFAULT_PARAMS, noise_models=(nm,), iterations=200, tolerance=1e-13)
+    zhat = robust.predict(ex, params)
+    fx, fy, cx, cy, width, height = ex.intrinsics()
+    a, b, u0, v0 = fx / width, fy / height, cx / width, cy / height
+    c2, var_box, var_cam = params.loss_scale**2, nm.sigma_box**2, nm.sigma_camera**2
+
+    def profile(i: int, z: float) -> float:
+        g, cam = torch.tensor(ex.boxes[i]), torch.tensor(ex.camera[i])
+        zi0 = z - cam[:, 2]
+        t = torch.stack(
+            [
+                ((g[:, 0] - u0) * zi0 + a * cam[:, 0]).mean(),
+                ((g[:, 1] - v0) * zi0 + b * cam[:, 1]).mean(),
+                (g[:, 2] * zi0).mean(),
+                (g[:, 3] * zi0).mean(),
+            ]
+        ).requires_grad_(True)
+        d = torch.zeros(ex.n_obs - 1, 3, dtype=torch.float64, requires_grad=True)
+        opt = torch.optim.LBFGS(
+            [t, d], max_iter=500, tolerance_grad=1e-14, tolerance_change=1e-16, line_search_fn="strong_wolfe"
+        )
+
+        def objective() -> Any:
+            opt.zero_grad()
+            c = cam + torch.cat([d, torch.zeros(1, 3, dtype=torch.float64)])
+            zi = z - c[:, 2]
+            p = torch.stack(
+                [u0 + (t[0] - a * c[:, 0]) / zi, v0 + (t[1] - b * c[:, 1]) / zi, t[2] / zi, t[3] / zi], 1
+            )
+            s = ((g - p) ** 2).sum(1) / var_box
+            loss = (c2 * torch.log1p(s / c2)).sum() + (d**2).sum() / var_cam
+            loss.backward()
+            return loss
+
+        for _ in range(3):
+            opt.step(objective)
+        return float(objective().detach())
+
+    for i in range(len(ex)):
+        here = profile(i, float(zhat[i]))
+        assert profile(i, float(zhat[i]) * 0.999) > here
+        assert profile(i, float(zhat[i]) * 1.001) > here
