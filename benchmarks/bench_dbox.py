@@ -1,0 +1,122 @@
+"""DBox speed: a training step and inference, against the original release's forward pass.
+
+Run:
+
+    .venv/bin/pytest benchmarks/bench_dbox.py --benchmark-only -p no:randomly \\
+        --benchmark-columns=min,median,mean,rounds -s
+
+Each case runs with 1 torch thread and with 2 (this machine's cores):
+
+- ``test_train_step``: one training step as ``train-dbox`` does it: generate 512
+  examples (preset odmd, perturbation both), build the f_Rel input, forward,
+  L1 loss, backward, Adam. Target on a 2-core machine: <= 32 ms.
+- ``test_inference``: forward pass on 1,000 examples (input already built), no
+  gradients. Target <= 15 ms.
+- ``impl="reference"`` is :func:`baselines.dbox.model.reference_forward`, the original
+  release's forward written as it was (all four gate blocks computed twice per
+  observation, per-step slices, ``cat`` before every FC layer), measured in the same
+  run on the same data, so that ``median(reference) / median(fast)`` is the speed-up.
+- ``test_ratio`` prints both ratios from interleaved timings in one process.
+
+The machines are shared: compare numbers from one run only.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Iterator
+
+import numpy as np
+import pytest
+
+torch = pytest.importorskip("torch")
+
+import odmd_bench  # noqa: E402
+from baselines.dbox.model import DBox, make_inputs, reference_forward  # noqa: E402
+
+IMPLS = ("fast", "reference")
+THREADS = (1, 2)
+
+
+@pytest.fixture(params=THREADS, ids=lambda t: f"threads{t}")
+def threads(request: pytest.FixtureRequest) -> Iterator[int]:
+    before = torch.get_num_threads()
+    torch.set_num_threads(request.param)
+    yield request.param
+    torch.set_num_threads(before)
+
+
+def _forward(model: DBox, impl: str) -> Callable[[torch.Tensor], torch.Tensor]:
+    if impl == "fast":
+        return model
+    return lambda x: reference_forward(model, x)
+
+
+def _train_step(model: DBox, impl: str) -> Callable[[], float]:
+    forward = _forward(model, impl)
+    optimizer = torch.optim.Adam(model.parameters(), lr=1e-3)
+    rng = np.random.default_rng(0)
+
+    def step() -> float:
+        batch = odmd_bench.generate(512, "odmd", "both", rng)
+        inp = make_inputs(batch, "rel")
+        loss = (forward(torch.from_numpy(inp.x)) - torch.from_numpy(inp.target)).abs().mean()
+        optimizer.zero_grad(set_to_none=True)
+        loss.backward()
+        optimizer.step()
+        return float(loss.item())
+
+    return step
+
+
+def _inference(model: DBox, impl: str) -> Callable[[], torch.Tensor]:
+    forward = _forward(model, impl)
+    x = torch.from_numpy(make_inputs(odmd_bench.generate(1000, "odmd", "both", 1), "rel").x)
+
+    def run() -> torch.Tensor:
+        with torch.no_grad():
+            return forward(x)
+
+    return run
+
+
+@pytest.mark.parametrize("impl", IMPLS)
+def test_train_step(benchmark, threads: int, impl: str) -> None:  # type: ignore[no-untyped-def]
+    step = _train_step(DBox(generator=torch.Generator().manual_seed(0)), impl)
+    step()  # warm-up (allocator, first-call costs)
+    benchmark.extra_info.update(threads=threads, impl=impl, batch=512, torch=torch.__version__)
+    loss = benchmark.pedantic(step, rounds=15, iterations=1)
+    assert np.isfinite(loss)
+
+
+@pytest.mark.parametrize("impl", IMPLS)
+def test_inference(benchmark, threads: int, impl: str) -> None:  # type: ignore[no-untyped-def]
+    run = _inference(DBox(generator=torch.Generator().manual_seed(0)), impl)
+    run()
+    benchmark.extra_info.update(threads=threads, impl=impl, examples=1000, torch=torch.__version__)
+    out = benchmark.pedantic(run, rounds=20, iterations=1)
+    assert out.shape == (1000,)
+
+
+def test_ratio(threads: int) -> None:
+    """Fast vs reference, interleaved in one process (median of 9 rounds each)."""
+    model = DBox(generator=torch.Generator().manual_seed(0))
+    cases = {
+        "train step": {impl: _train_step(model, impl) for impl in IMPLS},
+        "inference 1000": {impl: _inference(model, impl) for impl in IMPLS},
+    }
+    for name, fns in cases.items():
+        times: dict[str, list[float]] = {impl: [] for impl in IMPLS}
+        for fn in fns.values():
+            fn()
+        for _ in range(9):
+            for impl, fn in fns.items():
+                t0 = time.perf_counter()
+                fn()
+                times[impl].append(time.perf_counter() - t0)
+        fast, ref = (float(np.median(times[i])) * 1e3 for i in IMPLS)
+        print(
+            f"\n{name}, {threads} thread(s): fast {fast:.1f} ms, reference {ref:.1f} ms, "
+            f"ratio {ref / fast:.2f}x"
+        )
+        assert fast > 0 and ref > 0
