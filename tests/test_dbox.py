@@ -290,6 +290,17 @@ def test_shipped_p_weights_are_the_default_and_estimate_depth() -> None:
     assert err.mean() < 5.0  # Box_LS is exact here; an untrained network is far off
 
 
+def test_predict_report_counts_examples_without_any_detection(tmp_path: Path) -> None:
+    path = _save({k: torch.from_numpy(v).float() for k, v in _random_state(15).items()}, tmp_path / "w.pt")
+    ex = _examples(8, 16)
+    detected = ex.detected.copy()
+    detected[[1, 5]] = False
+    holed = Examples(boxes=ex.boxes, detected=detected, camera=ex.camera, depth=ex.depth)
+    depths, counts = dbox.predict_report(holed, weights=path)
+    assert counts == {"n": 8, "no_detection": 2}
+    np.testing.assert_allclose(depths[[0, 2, 3, 4, 6, 7]], dbox.predict(ex, weights=path)[[0, 2, 3, 4, 6, 7]])
+
+
 # --- training --------------------------------------------------------------------------
 
 
@@ -407,6 +418,26 @@ def test_train_dbox_command(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> 
     assert again.exit_code == 2 and "--resume" in again.output
     resumed = CliRunner().invoke(cli, [*args, "--resume"])
     assert resumed.exit_code == 0, resumed.output
+
+
+def test_shipped_p_weights_on_the_paper_test_sets(paper_data_dir: Path, tmp_path: Path) -> None:
+    """``baseline dbox`` + ``evaluate`` with the shipped weights: the issue's accuracy bound."""
+    from click.testing import CliRunner
+
+    from odmd_bench.cli import cli
+
+    preds = tmp_path / "dbox.csv"
+    common = ["--benchmark", "odmd-paper", "--data-dir", str(paper_data_dir)]
+    run = CliRunner().invoke(cli, ["baseline", "dbox", "--split", "test", "-o", str(preds), *common])
+    assert run.exit_code == 0, run.output
+    scored = CliRunner().invoke(cli, ["evaluate", str(preds), "--format", "json", *common])
+    assert scored.exit_code == 0, scored.output
+    result = json.loads(scored.stdout)
+    means = {k: v["percent_error"]["mean"] for k, v in result["sets"].items()}
+    # The paper's DBox_p after 100K iterations: 2.2 / 3.0 / 3.0 / 11.7, All 5.0.
+    bound = {"normal": 2.2, "camera": 3.0, "object": 3.0, "robot": 11.7}
+    assert {k: means[k] <= bound[k] for k in bound} == dict.fromkeys(bound, True), means
+    assert result["all"]["percent_error_mean"] <= 5.0
 
 
 # --- imports ---------------------------------------------------------------------------

@@ -147,4 +147,19 @@ def predict(
     return predict_depth(model, examples, formulation or form, torch.device("cpu"), chunk)
 
 
-__all__ = ["DEFAULT_WEIGHTS", "SHIPPED", "check_state_dict", "load_model", "predict"]
+def predict_report(
+    examples: Examples,
+    weights: str | os.PathLike[str] | None = None,
+    formulation: str | None = None,
+) -> tuple[np.ndarray, dict[str, int]]:
+    """:func:`predict`, and how many examples had no detection at all.
+
+    Such an example has nothing to fill its boxes from; the network sees the boxes as
+    stored (zeros in the original files) and its estimate means little. It is still
+    estimated, as the original release did, and counted here as ``no_detection``.
+    """
+    depths = predict(examples, weights=weights, formulation=formulation)
+    return depths, {"n": len(examples), "no_detection": int((~examples.detected.any(axis=1)).sum())}
+
+
+__all__ = ["DEFAULT_WEIGHTS", "SHIPPED", "check_state_dict", "load_model", "predict", "predict_report"]
