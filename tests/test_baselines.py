@@ -517,3 +517,20 @@ def test_analytical_baselines_and_the_command_do_not_import_torch() -> None:
         "sys.exit('torch' in sys.modules)"
     )
     assert subprocess.run([sys.executable, "-c", code], check=False).returncode == 0
+
+
+def test_robust_mode_option_reaches_the_method(v1_data_dir, tmp_path) -> None:
+    from click.testing import CliRunner
+
+    from odmd_bench.cli import cli
+
+    out = tmp_path / "scale.csv"
+    args = ["baseline", "robust", "--split", "val", "--data-dir", str(v1_data_dir), "-o", str(out)]
+    r = CliRunner().invoke(cli, [*args, "--mode", "scale"])
+    assert r.exit_code == 0, r.output
+    full = tmp_path / "full.csv"
+    r = CliRunner().invoke(cli, [*args[:-1], str(full)])
+    assert r.exit_code == 0, r.output
+    assert out.read_text() != full.read_text()  # scale mode ignores parallax: other numbers
+    r = CliRunner().invoke(cli, ["baseline", "box-ls", "--mode", "scale", "--data-dir", str(v1_data_dir)])
+    assert r.exit_code == 2 and "robust only" in r.stderr

@@ -94,6 +94,13 @@ def default_output(name: str, benchmark: str, split: str) -> Path:
     default=None,
     help="dbox only: checkpoint to load (also the original release's layout).",
 )
+@click.option(
+    "--mode",
+    type=click.Choice(["full", "scale"]),
+    default=None,
+    help="robust only: 'full' (reprojection of every box coordinate; needs intrinsics) or "
+    "'scale' (box sizes only: for sets without intrinsics, e.g. odms-detection).",
+)
 def baseline(
     name: str,
     benchmark: str,
@@ -101,6 +108,7 @@ def baseline(
     output: Path | None,
     data_dir: Path | None,
     weights: Path | None,
+    mode: str | None,
 ) -> None:
     """Run baseline NAME on every set of a split and write a predictions CSV.
 
@@ -113,8 +121,12 @@ def baseline(
 
     if weights is not None and name != "dbox":
         raise UsageError(f"--weights applies to dbox only, not to {name!r}")
+    if mode is not None and name != "robust":
+        raise UsageError(f"--mode applies to robust only, not to {name!r}")
     method = _import_method(name)
     kwargs: dict[str, Any] = {"weights": weights} if weights is not None else {}
+    if mode is not None:
+        kwargs["mode"] = mode
 
     sets = load_split(split, benchmark, data_dir)
     depths: dict[str, np.ndarray] = {}
