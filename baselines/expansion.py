@@ -51,7 +51,7 @@ from __future__ import annotations
 import numpy as np
 
 import odmd_bench
-from baselines.parallax import Combine, Fill, check_combine, endpoint_boxes
+from baselines.parallax import Combine, Fill, check_combine, combine_halves, endpoint_boxes
 
 #: Depth (metres) where the width solution is not finite, as the original release uses.
 DEFAULT_FALLBACK_DEPTH = 1.0
@@ -94,25 +94,12 @@ def predict_report(
     boxes, none = endpoint_boxes(examples, fill)
     first, last = boxes[:, 0], boxes[:, 1]
     move_z = examples.camera[:, 0, 2] - examples.camera[:, -1, 2]  # C_Z1 - C_Zn
-    counts = dict.fromkeys(FALLBACKS, 0)
-    counts["no_detection"] = int(none.sum())
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         # Z_w = move_z / a_w and Z_h = move_z / a_h (module docstring).
         a_w = 1 - last[:, 2] / first[:, 2]
         a_h = 1 - last[:, 3] / first[:, 3]
-        if combine == "lsq":
-            depth = move_z * (a_w + a_h) / (a_w * a_w + a_h * a_h)
-            bad = ~np.isfinite(depth) & ~none
-            counts["non_finite"] = int(bad.sum())
-            return np.where(none | bad, fallback_depth, depth), counts
-        z_w, z_h = move_z / a_w, move_z / a_h
-        depth = (z_w + z_h) / 2
-    bad_w = ~np.isfinite(z_w)
-    bad_h = ~np.isfinite(z_h)
-    depth = np.where(bad_h, z_w, depth)
-    counts["non_finite_w"] = int((bad_w & ~none).sum())
-    counts["non_finite_h"] = int((bad_h & ~bad_w & ~none).sum())
-    return np.where(none | bad_w, fallback_depth, depth), counts
+    depth, counts = combine_halves((move_z, a_w), (move_z, a_h), none, fallback_depth, combine, ("w", "h"))
+    return depth, {**dict.fromkeys(FALLBACKS, 0), "no_detection": int(none.sum()), **counts}
 
 
 def predict(

@@ -160,26 +160,48 @@ def predict_report(
     boxes, none = endpoint_boxes(examples, fill)
     first, last = boxes[:, 0], boxes[:, 1]
     move = examples.camera[:, -1] - examples.camera[:, 0]  # C_n - C_1
-    counts = dict.fromkeys(FALLBACKS, 0)
-    counts["no_detection"] = int(none.sum())
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         # Z_x = num_x / den_x and Z_y = num_y / den_y (module docstring).
         num_x, num_y = fx * move[:, 0], fy * move[:, 1]
         den_x = (first[:, 0] - cx) * (last[:, 2] / first[:, 2]) - (last[:, 0] - cx)
         den_y = (first[:, 1] - cy) * (last[:, 3] / first[:, 3]) - (last[:, 1] - cy)
+    depth, counts = combine_halves((num_x, den_x), (num_y, den_y), none, fallback_depth, combine, ("x", "y"))
+    return depth, {**dict.fromkeys(FALLBACKS, 0), "no_detection": int(none.sum()), **counts}
+
+
+def combine_halves(
+    first: tuple[np.ndarray, np.ndarray],
+    second: tuple[np.ndarray, np.ndarray],
+    none: np.ndarray,
+    fallback_depth: float,
+    combine: Combine,
+    names: tuple[str, str],
+) -> tuple[np.ndarray, dict[str, int]]:
+    """Combine two single-cue solutions ``Z = num / den`` (shared with expansion).
+
+    ``"mean"`` (the paper) averages them; where the second is not finite the first is
+    used alone, and where the first is not finite the depth is ``fallback_depth`` (the
+    original release's rule). ``"lsq"`` solves ``den Z = num`` for both rows by least
+    squares. Examples flagged in ``none`` get ``fallback_depth``.
+
+    Returns the depths and the counts ``non_finite_<name>`` (mean) or ``non_finite`` (lsq).
+    """
+    (num_a, den_a), (num_b, den_b) = first, second
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         if combine == "lsq":
-            depth = (den_x * num_x + den_y * num_y) / (den_x * den_x + den_y * den_y)
+            depth = (den_a * num_a + den_b * num_b) / (den_a * den_a + den_b * den_b)
             bad = ~np.isfinite(depth) & ~none
-            counts["non_finite"] = int(bad.sum())
-            return np.where(none | bad, fallback_depth, depth), counts
-        z_x, z_y = num_x / den_x, num_y / den_y
-        depth = (z_x + z_y) / 2
-    bad_x = ~np.isfinite(z_x)
-    bad_y = ~np.isfinite(z_y)
-    depth = np.where(bad_y, z_x, depth)
-    counts["non_finite_x"] = int((bad_x & ~none).sum())
-    counts["non_finite_y"] = int((bad_y & ~bad_x & ~none).sum())
-    return np.where(none | bad_x, fallback_depth, depth), counts
+            return np.where(none | bad, fallback_depth, depth), {"non_finite": int(bad.sum())}
+        z_a, z_b = num_a / den_a, num_b / den_b
+        depth = (z_a + z_b) / 2
+    bad_a = ~np.isfinite(z_a)
+    bad_b = ~np.isfinite(z_b)
+    depth = np.where(bad_b, z_a, depth)
+    counts = {
+        f"non_finite_{names[0]}": int((bad_a & ~none).sum()),
+        f"non_finite_{names[1]}": int((bad_b & ~bad_a & ~none).sum()),
+    }
+    return np.where(none | bad_a, fallback_depth, depth), counts
 
 
 def predict(
