@@ -43,29 +43,13 @@ def _temp_beside(target: Path) -> tuple[int, str]:
 
 
 @contextlib.contextmanager
-def atomic_write(path: str | os.PathLike[str], mode: str = "wb") -> Iterator[IO[Any]]:
-    """Open a temporary file beside ``path``; on success, move it over ``path``.
+def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
+    """A temporary file name beside ``path``; on success, the file is moved over ``path``.
 
     If the body raises (or the process dies), ``path`` is untouched: an existing good
-    file is never lost and no half-written file is left under the final name.
+    file is never lost and no half-written file is left under the final name. For
+    writers that want a file name (h5py, savefig); see also :func:`atomic_write`.
     """
-    fd, tmp = _temp_beside(Path(path))
-    target = Path(path)
-    try:
-        with os.fdopen(fd, mode) as fh:
-            yield fh
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, target)
-    except BaseException:
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(tmp)
-        raise
-
-
-@contextlib.contextmanager
-def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
-    """Like :func:`atomic_write` for writers that want a file name (h5py, savefig)."""
     target = Path(path)
     fd, tmp = _temp_beside(target)
     os.close(fd)
@@ -78,6 +62,14 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
         with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)
         raise
+
+
+@contextlib.contextmanager
+def atomic_write(path: str | os.PathLike[str], mode: str = "wb") -> Iterator[IO[Any]]:
+    """Open a temporary file beside ``path`` for writing; on success it replaces ``path``
+    (see :func:`atomic_path`)."""
+    with atomic_path(path) as tmp, open(tmp, mode) as fh:
+        yield fh
 
 
 def set_arrays(ex: Examples) -> dict[str, np.ndarray]:
