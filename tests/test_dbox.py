@@ -371,6 +371,29 @@ def _stop_at(step: int):  # type: ignore[no-untyped-def]
     return on_step
 
 
+def test_a_second_cycle_starts_from_given_weights(tmp_path: Path) -> None:
+    opts = {"device": "cpu", "val_every": 5, "val_sets": _tiny_val(), "batch_size": 16, "progress": None}
+    first = train("p", 5, tmp_path / "one", **opts)  # type: ignore[arg-type]
+    seen: list[float] = []
+    second = train(
+        "p",
+        5,
+        tmp_path / "two",
+        seed=1,
+        lr=1e-4,
+        init=first.weights,
+        on_step=lambda s, v: seen.append(v),
+        **opts,
+    )  # type: ignore[arg-type]
+    fresh = train("p", 5, tmp_path / "three", seed=1, lr=1e-4, **opts)  # type: ignore[arg-type]
+    assert second.losses != fresh.losses  # it did not start from the random init
+    record = json.loads((tmp_path / "two" / "dbox_p.json").read_text())
+    assert record["init"]["sha256"] == odmd_bench.io.file_sha256(first.weights)
+    assert record["lr"] == 1e-4
+    with pytest.raises(UsageError, match="--init weights not found"):
+        train("p", 5, tmp_path / "four", init=tmp_path / "nope.pt", **opts)  # type: ignore[arg-type]
+
+
 def test_training_refuses_to_overwrite_or_resume_the_wrong_run(tmp_path: Path) -> None:
     opts = {"device": "cpu", "val_every": 5, "val_sets": _tiny_val(), "batch_size": 16, "progress": None}
     train("p", 5, tmp_path / "run", **opts)  # type: ignore[arg-type]
@@ -411,7 +434,7 @@ def test_train_dbox_command(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> 
     assert "val All" in result.output  # the progress line
     record = json.loads((out / "dbox_p.json").read_text())
     assert record["command"] == (
-        f"odmd-bench train-dbox --config p --steps 4 --seed 0 --val-every 2 --schedule cosine "
+        f"odmd-bench train-dbox --config p --steps 4 --seed 0 --val-every 2 --schedule cosine --lr 0.001 "
         f"--threads 1 --device auto --out {out}"
     )
     again = CliRunner().invoke(cli, args)

@@ -15,6 +15,9 @@ same seed and thread count gives the same weights, and a resumed run continues
 exactly where the interrupted one was (model, optimizer, step, data generator state,
 validation history are all in ``last.pt``).
 
+A second, lower-rate cycle can start from an earlier run's best weights (``init``,
+with a lower peak ``lr``): the optimizer starts fresh, the schedule is a new cosine.
+
 Files in the output folder:
 
 - ``last.pt``: the resumable training state (written atomically at every check).
@@ -85,17 +88,19 @@ def get_config(name: str) -> TrainConfig:
     return CONFIGS[name]
 
 
-def learning_rate(step: int, steps: int, schedule: str, min_lr_ratio: float) -> float:
+def learning_rate(
+    step: int, steps: int, schedule: str, min_lr_ratio: float, peak: float = LEARNING_RATE
+) -> float:
     """The learning rate for step ``step`` (0-based) of ``steps``.
 
-    ``cosine``: from 1e-3 down to ``1e-3 * min_lr_ratio`` at the last step;
-    ``constant``: 1e-3 throughout (the paper).
+    ``cosine``: from ``peak`` (1e-3) down to ``peak * min_lr_ratio`` at the last step;
+    ``constant``: ``peak`` throughout (the paper).
     """
     if schedule == "constant":
-        return LEARNING_RATE
+        return peak
     frac = min(step / max(steps - 1, 1), 1.0)
-    low = LEARNING_RATE * min_lr_ratio
-    return low + 0.5 * (LEARNING_RATE - low) * (1.0 + math.cos(math.pi * frac))
+    low = peak * min_lr_ratio
+    return low + 0.5 * (peak - low) * (1.0 + math.cos(math.pi * frac))
 
 
 def resolve_device(device: str) -> torch.device:
@@ -199,6 +204,8 @@ def train(
     resume: bool = False,
     schedule: str = "cosine",
     min_lr_ratio: float = 0.01,
+    lr: float = LEARNING_RATE,
+    init: str | Path | None = None,
     val_sets: Mapping[str, Examples] | None = None,
     data_dir: str | Path | None = None,
     batch_size: int = BATCH_SIZE,
@@ -220,7 +227,11 @@ def train(
             least 1, as the paper's "every hundredth of training").
         resume: continue from ``out/last.pt`` (same config, steps, seed, schedule).
         schedule: ``cosine`` (default) or ``constant`` (the paper's).
-        min_lr_ratio: final learning rate of the cosine schedule relative to 1e-3.
+        min_lr_ratio: final learning rate of the cosine schedule relative to ``lr``.
+        lr: peak learning rate (1e-3, the paper's).
+        init: start from these weights (a checkpoint in the original layout, e.g.
+            an earlier run's best) instead of the seeded random initialisation; the
+            optimizer starts fresh. For a second, lower-rate cosine cycle.
         val_sets: the validation sets; default: all sets of the config's validation
             benchmark's ``val`` split, read from the data folder.
         data_dir: data folder for the default validation sets.
@@ -239,6 +250,10 @@ def train(
         problems.append(f"steps must be a positive integer, got {steps!r}")
     if schedule not in SCHEDULES:
         problems.append(f"unknown schedule {schedule!r}; expected one of {', '.join(SCHEDULES)}")
+    if init is not None and not Path(init).is_file():
+        problems.append(f"--init weights not found: {init}")
+    if not 0.0 < lr <= 1.0:
+        problems.append(f"lr must be in (0, 1], got {lr}")
     if not 0.0 <= min_lr_ratio <= 1.0:
         problems.append(f"min_lr_ratio must be in [0, 1], got {min_lr_ratio}")
     if val_every is not None and val_every < 1:
@@ -271,12 +286,19 @@ def train(
         "seed": seed,
         "schedule": schedule,
         "min_lr_ratio": min_lr_ratio,
+        "lr": lr,
+        "init": None if init is None else {"path": str(init), "sha256": file_sha256(init)},
         "batch_size": batch_size,
         "val_every": every,
         "val_sets": val_names,
     }
     model = DBox(generator=torch.Generator().manual_seed(seed)).to(dev)
-    optimizer = torch.optim.Adam(model.parameters(), lr=LEARNING_RATE)
+    if init is not None:
+        from baselines.dbox import load_model
+
+        start, _ = load_model(init)
+        model.load_state_dict(start.state_dict())
+    optimizer = torch.optim.Adam(model.parameters(), lr=lr)
     rng = np.random.default_rng(seed)
     step = 0
     best: dict[str, Any] = {"step": -1, "scores": {"all": math.inf}}
@@ -302,9 +324,9 @@ def train(
     losses: list[float] = []
     model.train()
     while step < steps:
-        lr = learning_rate(step, steps, schedule, min_lr_ratio)
+        rate = learning_rate(step, steps, schedule, min_lr_ratio, lr)
         for group in optimizer.param_groups:
-            group["lr"] = lr
+            group["lr"] = rate
         batch = odmd_bench.generate(batch_size, cfg.preset, cfg.perturbation, rng)
         x, y, _ = batch_tensors(batch, cfg.formulation, dev)
         loss = (model(x) - y).abs().mean()
@@ -325,10 +347,10 @@ def train(
             val_text = f"val All {scores['all']:.3f} " + _val_text(best)
             _save_state(state_path, model, optimizer, rng, step, best, settings)
             _write_record(weights_path, cfg, settings, best, step, command)
-            _append_log(out / "log.jsonl", {"step": step, "lr": lr, "loss": value, **scores})
-            bar.update(step, value, lr, val_text, force=True)
+            _append_log(out / "log.jsonl", {"step": step, "lr": rate, "loss": value, **scores})
+            bar.update(step, value, rate, val_text, force=True)
         else:
-            bar.update(step, value, lr, val_text)
+            bar.update(step, value, rate, val_text)
     return TrainResult(
         out=out,
         weights=weights_path,
@@ -376,7 +398,6 @@ def _write_record(
         "generator_version": odmd_bench.GENERATOR_VERSION,
         "torch_version": torch.__version__,
         "torch_threads": torch.get_num_threads(),
-        "learning_rate": LEARNING_RATE,
         "weights_sha256": file_sha256(weights) if weights.exists() else None,
     }
     with atomic_write(weights.with_suffix(".json"), "w") as fh:

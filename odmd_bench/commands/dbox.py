@@ -49,6 +49,20 @@ from odmd_bench.commands.data import data_dir_option
     help="Learning rate: cosine decay from 1e-3 to 1e-5, or the paper's constant 1e-3.",
 )
 @click.option(
+    "--lr",
+    type=click.FloatRange(min=0.0, min_open=True, max=1.0),
+    default=1e-3,
+    show_default=True,
+    help="Peak learning rate (the paper's 1e-3).",
+)
+@click.option(
+    "--init",
+    type=click.Path(dir_okay=False, path_type=Path),
+    default=None,
+    help="Start from these weights (original layout, e.g. an earlier run's dbox_p.pt) "
+    "for a second, lower-rate cosine cycle.",
+)
+@click.option(
     "--threads",
     type=click.IntRange(min=0),
     default=0,
@@ -65,6 +79,8 @@ def train_dbox(
     out: Path,
     resume: bool,
     schedule: str,
+    lr: float,
+    init: Path | None,
     threads: int,
     data_dir: Path | None,
 ) -> None:
@@ -82,7 +98,8 @@ def train_dbox(
     # The canonical command that reproduces this run (every option spelt out).
     args = ["odmd-bench", "train-dbox", "--config", config, "--steps", str(steps), "--seed", str(seed)]
     args += ["--val-every", str(val_every)] if val_every is not None else []
-    args += ["--schedule", schedule, "--threads", str(threads), "--device", device, "--out", str(out)]
+    args += ["--schedule", schedule, "--lr", f"{lr:g}"] + (["--init", str(init)] if init else [])
+    args += ["--threads", str(threads), "--device", device, "--out", str(out)]
     args += ["--resume"] if resume else []
     command = shlex.join(args)
     result = train(
@@ -94,6 +111,8 @@ def train_dbox(
         val_every=val_every,
         resume=resume,
         schedule=schedule,
+        lr=lr,
+        init=init,
         data_dir=data_dir,
         command=command,
         progress=sys.stderr,
