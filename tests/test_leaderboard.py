@@ -482,3 +482,36 @@ def test_cli_add_makes_an_entry_that_build_ranks(
     assert stale.exit_code == 2 and "build writes '| 2 | [Exp 2](entries/exp2/odmd-v1-test/)" in stale.output
     assert runner.invoke(cli, ["leaderboard", "build", "--no-plot", *common]).exit_code == 0
     assert runner.invoke(cli, ["leaderboard", "check", *common]).exit_code == 0
+
+
+def test_the_readme_summary_is_generated_and_checked(board: Path, v1_data_dir: Path) -> None:
+    """A README beside the folder with the two markers gets the summary; a changed digit fails."""
+    readme = board.parent / lb.README
+    readme.write_text(f"# Project\n\nintro\n\n{lb.README_START}\nstale\n{lb.README_END}\n\nafter\n")
+    assert any("stale" in p for p in _check(board, v1_data_dir))
+    said = lb.write(board, lb.build(board, v1_data_dir, n_resamples=FAST), plot=False)
+    assert any("README.md" in line for line in said)
+    text = readme.read_text()
+    assert text.startswith("# Project\n\nintro\n\n") and text.endswith(f"{lb.README_END}\n\nafter\n")
+    assert "### odmd-v1 test" in text and "| BOX-LS |" in text
+    assert _check(board, v1_data_dir) == []
+
+    lines = text.splitlines(keepends=True)
+    i = next(k for k, line in enumerate(lines) if line.startswith("| 1 | BOX-LS |"))
+    cells = lines[i].split(" | ")
+    old = cells[3]  # Camera
+    cells[3] = old[:-1] + str((int(old[-1]) + 1) % 10)
+    lines[i] = " | ".join(cells)
+    readme.write_text("".join(lines))
+    assert _check(board, v1_data_dir) == [
+        f"README.md line {i + 1}: table 'odmd-v1 test (generator v1 + imported robot)', row 'BOX-LS', "
+        f"column 'Camera': committed {cells[3]!r}, build writes {old!r}"
+    ]
+
+
+def test_a_readme_without_the_markers_is_left_alone(board: Path, v1_data_dir: Path) -> None:
+    readme = board.parent / lb.README
+    readme.write_text("# Project\n")
+    lb.write(board, lb.build(board, v1_data_dir, n_resamples=FAST), plot=False)
+    assert readme.read_text() == "# Project\n"
+    assert _check(board, v1_data_dir) == []
