@@ -8,4 +8,10 @@ ruff format --check .
 mypy
 pytest
 # Re-score every leaderboard entry from its committed predictions; fails on any difference.
-odmd-bench leaderboard check --original "${ODMD_ORIGINAL:-../shared/odmd-original}"
+# The odmd-paper entries need the original release; in CI (CI=true) it must be there.
+original="${ODMD_ORIGINAL:-../shared/odmd-original}"
+if [ -d "$original" ] || [ "${CI:-}" = "true" ]; then
+    odmd-bench leaderboard check --original "$original"
+else
+    echo "SKIPPED leaderboard check: the original ODMD release is not at $original (set ODMD_ORIGINAL); CI runs it"
+fi
