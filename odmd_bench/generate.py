@@ -77,8 +77,10 @@ def generate(
         raise UsageError(f"n must be a positive integer, got {n!r}")
     config = get_preset(preset)
     check_perturbation(perturbation)
-    gen = as_rng(rng)
-    arrays = _generate_arrays(int(n), config, perturbation, gen)
+    return _examples(_generate_arrays(int(n), config, perturbation, as_rng(rng)), config, perturbation)
+
+
+def _examples(arrays: dict[str, np.ndarray], config: GeneratorConfig, perturbation: str) -> Examples:
     cam = config.camera
     attrs = {
         "generator_version": GENERATOR_VERSION,
@@ -108,20 +110,43 @@ def generate(
 _CHUNK = 1024
 
 
+def _scratch(work: dict[str, np.ndarray] | None, name: str, shape: tuple[int, ...]) -> np.ndarray:
+    """A float64 array for temporaries: reused from ``work`` when it has one of this shape.
+
+    Fresh memory costs page faults that take as long as the draws themselves here, so
+    :func:`stream` keeps its temporaries from batch to batch. Nothing returned to the
+    caller lives in ``work``.
+    """
+    if work is None:
+        return np.empty(shape)
+    a = work.get(name)
+    if a is None or a.shape != shape:
+        a = work[name] = np.empty(shape)
+    return a
+
+
 def _generate_arrays(
-    n: int, config: GeneratorConfig, perturbation: str, rng: np.random.Generator
+    n: int,
+    config: GeneratorConfig,
+    perturbation: str,
+    rng: np.random.Generator,
+    work: dict[str, np.ndarray] | None = None,
 ) -> dict[str, np.ndarray]:
     n_obs = config.n_obs
     cam = config.camera
-    u = rng.random((n, 12 + 3 * (n_obs - 2)))
+    u = rng.random(out=_scratch(work, "u", (n, 12 + 3 * (n_obs - 2))))
     cam_noise = None
     if perturbation in ("camera", "both") and config.camera_sigma > 0:
-        cam_noise = rng.standard_normal((n, n_obs - 1, 3))
-    box_noise = None
+        cam_noise = rng.standard_normal(out=_scratch(work, "camera_noise", (n, n_obs - 1, 3)))
+    boxes = np.empty((n, n_obs, 4))
+    box_noise = False
     replacement = None
     if perturbation in ("object", "both"):
         if config.box_sigma > 0:
-            box_noise = rng.standard_normal((n, n_obs, 4))
+            # Drawn straight into the output; the projection is added below
+            # (sigma * noise + projection: the same sum, bit for bit).
+            rng.standard_normal(out=boxes)
+            box_noise = True
         if config.replace_prob > 0 and n > 1:
             hit = rng.random(n) < config.replace_prob
             obs = rng.integers(0, n_obs, n)
@@ -139,7 +164,6 @@ def _generate_arrays(
     cyn = cam.cy / cam.image_height
 
     size = s_lo + u[:, 6:8] * (s_hi - s_lo)  # object W, H
-    boxes = np.empty((n, n_obs, 4))
     positions = np.empty((n, n_obs, 3))
     camera_clean = np.empty((n, n_obs, 3))
     camera = camera_clean if cam_noise is None else np.empty((n, n_obs, 3))
@@ -186,25 +210,30 @@ def _generate_arrays(
         pos = positions[a:b]
         np.subtract(last[:, None, :], coef, out=pos)
 
-        # Pinhole projection, normalised by the image size.
+        # Pinhole projection, normalised by the image size, plus (object perturbation)
+        # box noise on every coordinate, already drawn into ``boxes``.
         inv_z = 1.0 / pos[:, :, 2]
         bx = boxes[a:b]
-        bx[:, :, 0] = pos[:, :, 0] * inv_z * fxn + cxn
-        bx[:, :, 1] = pos[:, :, 1] * inv_z * fyn + cyn
-        bx[:, :, 2] = inv_z * (size[a:b, 0:1] * fxn)
-        bx[:, :, 3] = inv_z * (size[a:b, 1:2] * fyn)
+        proj = (
+            pos[:, :, 0] * inv_z * fxn + cxn,
+            pos[:, :, 1] * inv_z * fyn + cyn,
+            inv_z * (size[a:b, 0:1] * fxn),
+            inv_z * (size[a:b, 1:2] * fyn),
+        )
+        if box_noise:
+            bx *= config.box_sigma
+            for k in range(4):
+                bx[:, :, k] += proj[k]
+        else:
+            for k in range(4):
+                bx[:, :, k] = proj[k]
 
-        # Perturbations: camera noise on every position but the last, box noise on
-        # every coordinate.
+        # Camera noise on every position but the last.
         if cam_noise is not None:
             noise = cam_noise[a:b]
             noise *= config.camera_sigma
             np.add(coef[:, :-1], noise, out=camera[a:b, :-1])
             camera[a:b, -1] = 0.0
-        if box_noise is not None:
-            noise = box_noise[a:b]
-            noise *= config.box_sigma
-            bx += noise
 
     # Replacement of one box by the box another example has at the same observation
     # (after the noise, so the donor box is a noisy detection too).
@@ -245,8 +274,15 @@ def stream(
         >>> next(batches).boxes.shape
         (512, 10, 4)
     """
+    from odmd_bench.errors import UsageError
+
+    if isinstance(batch_size, bool) or not isinstance(batch_size, int | np.integer) or batch_size < 1:
+        raise UsageError(f"batch_size must be a positive integer, got {batch_size!r}")
     gen = as_rng(rng)
     config = get_preset(preset)
     check_perturbation(perturbation)
+    work: dict[str, np.ndarray] = {}  # temporaries kept between batches (see _scratch)
     while True:
-        yield generate(batch_size, config, perturbation, gen)
+        yield _examples(
+            _generate_arrays(int(batch_size), config, perturbation, gen, work), config, perturbation
+        )

@@ -127,3 +127,38 @@ def test_custom_config_is_honoured() -> None:
     assert ex.boxes.shape == (100, 4, 4)
     assert (ex.camera[:, :, :2] == 0).all()
     assert (np.abs(ex.camera[:, 0, 2]) >= 0.1).all()
+
+
+def _same(a: odmd_bench.Examples, b: odmd_bench.Examples) -> bool:
+    return content_sha256(set_arrays(a)) == content_sha256(set_arrays(b))
+
+
+@pytest.mark.parametrize("perturbation", ["normal", "camera", "object", "both"])
+def test_stream_batches_are_successive_generate_calls(perturbation: str) -> None:
+    """The stream reuses its temporaries between batches; the numbers must not notice, and
+    a batch already handed out must not change when the next one is made."""
+    batches = odmd_bench.stream(300, perturbation=perturbation, rng=11)
+    first = next(batches)
+    kept = first.boxes.copy(), first.camera.copy(), first.depth.copy()
+    rest = [next(batches) for _ in range(3)]
+    gen = np.random.Generator(np.random.SFC64(11))
+    expected = [generate(300, "odmd", perturbation, gen) for _ in range(4)]
+    assert all(_same(x, y) for x, y in zip([first, *rest], expected, strict=True))
+    for was, now in zip(kept, (first.boxes, first.camera, first.depth), strict=True):
+        np.testing.assert_array_equal(was, now)
+    assert first.attrs == expected[0].attrs
+
+
+def test_box_noise_is_added_to_the_projection() -> None:
+    """With box noise, boxes = noise-free projection + sigma * N(0, 1), the same draws."""
+    clean = generate(500, "odmd", "normal", rng=5)
+    noisy = generate(500, "odmd", "object", rng=5)
+    np.testing.assert_array_equal(noisy.camera, clean.camera)
+    diff = (noisy.boxes - clean.boxes)[~noisy.extras["replaced"]]
+    assert 0.0009 < diff.std() < 0.0011 and abs(diff.mean()) < 1e-4
+
+
+@pytest.mark.parametrize("bad", [0, -3, 2.5, True, "512"])
+def test_stream_refuses_a_bad_batch_size(bad: object) -> None:
+    with pytest.raises(odmd_bench.OdmdError, match="batch_size"):
+        next(odmd_bench.stream(bad))  # type: ignore[arg-type]
