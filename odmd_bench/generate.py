@@ -71,13 +71,19 @@ def generate(
         >>> ex.boxes.shape, ex.camera[:, -1].tolist() == [[0.0, 0.0, 0.0]] * 4
         ((4, 10, 4), True)
     """
-    from odmd_bench.errors import UsageError
-
-    if isinstance(n, bool) or not isinstance(n, int | np.integer) or n < 1:
-        raise UsageError(f"n must be a positive integer, got {n!r}")
+    n = _count(n, "n")
     config = get_preset(preset)
     check_perturbation(perturbation)
-    return _examples(_generate_arrays(int(n), config, perturbation, as_rng(rng)), config, perturbation)
+    return _examples(_generate_arrays(n, config, perturbation, as_rng(rng)), config, perturbation)
+
+
+def _count(value: object, name: str) -> int:
+    """``value`` as an int if it is a positive integer (not a bool), else a UsageError."""
+    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
+        from odmd_bench.errors import UsageError
+
+        raise UsageError(f"{name} must be a positive integer, got {value!r}")
+    return int(value)
 
 
 def _examples(arrays: dict[str, np.ndarray], config: GeneratorConfig, perturbation: str) -> Examples:
@@ -274,15 +280,10 @@ def stream(
         >>> next(batches).boxes.shape
         (512, 10, 4)
     """
-    from odmd_bench.errors import UsageError
-
-    if isinstance(batch_size, bool) or not isinstance(batch_size, int | np.integer) or batch_size < 1:
-        raise UsageError(f"batch_size must be a positive integer, got {batch_size!r}")
+    batch_size = _count(batch_size, "batch_size")
     gen = as_rng(rng)
     config = get_preset(preset)
     check_perturbation(perturbation)
     work: dict[str, np.ndarray] = {}  # temporaries kept between batches (see _scratch)
     while True:
-        yield _examples(
-            _generate_arrays(int(batch_size), config, perturbation, gen, work), config, perturbation
-        )
+        yield _examples(_generate_arrays(batch_size, config, perturbation, gen, work), config, perturbation)

@@ -813,6 +813,12 @@ def _fmt(x: float) -> str:
     return "0.00" if s == "-0.00" else s
 
 
+def _table_head(head: Sequence[str], numeric: range) -> list[str]:
+    """A markdown table's header and alignment lines; columns in ``numeric`` align right."""
+    align = "|".join(" ---: " if i in numeric else " --- " for i in range(len(head)))
+    return ["| " + " | ".join(head) + " |", f"|{align}|"]
+
+
 def render_markdown(
     boards: Sequence[Board], reported: Sequence[Mapping[str, Any]], *, n_resamples: int | None = None
 ) -> str:
@@ -844,12 +850,7 @@ def render_markdown(
         ]
         head = ["Group", "Method", *[_SET_TITLES.get(s, s) for s in bd.sets], "All", "vs group best"]
         head += ["Calibrated", "Trained on", "Data", "Date"]
-        lines.append("| " + " | ".join(head) + " |")
-        lines.append(
-            "|"
-            + "|".join(" ---: " if i in range(2, 3 + len(bd.sets)) else " --- " for i in range(len(head)))
-            + "|"
-        )
+        lines += _table_head(head, range(2, 3 + len(bd.sets)))
         for row in bd.rows:
             res = row.result
             meta = row.entry.meta
@@ -895,12 +896,7 @@ def render_markdown(
                 "Re-scored here",
             ]
             lines += [f"### {bench} {split} (reported)", ""]
-            lines.append("| " + " | ".join(head) + " |")
-            lines.append(
-                "|"
-                + "|".join(" ---: " if 1 <= i <= len(sets) + 1 else " --- " for i in range(len(head)))
-                + "|"
-            )
+            lines += _table_head(head, range(1, len(sets) + 2))
             for r in reported:
                 if (r["benchmark"], r["split"]) != (bench, split):
                     continue
@@ -933,14 +929,8 @@ def render_readme_block(boards: Sequence[Board]) -> str:
     lines: list[str] = []
     for bd in boards:
         head = ["Group", "Method", *[_SET_TITLES.get(s, s) for s in bd.sets], "All", "Calibrated"]
-        lines += [
-            f"### {bd.benchmark} {bd.split} ({bd.data_version})",
-            "",
-            "| " + " | ".join(head) + " |",
-            "|"
-            + "|".join(" ---: " if 2 <= i <= 2 + len(bd.sets) else " --- " for i in range(len(head)))
-            + "|",
-        ]
+        lines += [f"### {bd.benchmark} {bd.split} ({bd.data_version})", ""]
+        lines += _table_head(head, range(2, 3 + len(bd.sets)))
         for row in bd.rows:
             res = row.result
             cells = [
@@ -955,21 +945,24 @@ def render_readme_block(boards: Sequence[Board]) -> str:
     return "\n".join(lines).rstrip("\n") + "\n"
 
 
-def _readme_parts(text: str) -> tuple[str, str, str] | None:
-    """(before and start marker, block, end marker and after), or None without both markers."""
-    start = text.find(README_START)
-    if start < 0:
-        return None
-    head_end = text.find("\n", start)
-    end = text.find(README_END, head_end if head_end >= 0 else start)
-    if head_end < 0 or end < 0:
-        return None
-    return text[: head_end + 1], text[head_end + 1 : end], text[end:]
-
-
 def readme_path(root: str | os.PathLike[str]) -> Path:
     """The README whose generated block ``build`` keeps current: ``ROOT/../README.md``."""
     return Path(root).resolve().parent / README
+
+
+def _stale_readme(root: str | os.PathLike[str], block: str) -> tuple[Path, str, str] | None:
+    """(README path, its text, its text with ``block`` between the markers) when the README
+    has both markers and a different block; None when there is nothing to do."""
+    readme = readme_path(root)
+    if not readme.is_file():
+        return None
+    text = readme.read_text(encoding="utf-8")
+    start = text.find(README_START)
+    head_end = text.find("\n", start) if start >= 0 else -1
+    end = text.find(README_END, head_end) if head_end >= 0 else -1
+    if end < 0 or text[head_end + 1 : end] == block:
+        return None
+    return readme, text, text[: head_end + 1] + block + text[end:]
 
 
 def write(root: str | os.PathLike[str], built: Built, *, plot: bool = True) -> list[str]:
@@ -983,11 +976,11 @@ def write(root: str | os.PathLike[str], built: Built, *, plot: bool = True) -> l
         with atomic_write(root / name, "w") as fh:
             fh.write(text)
         said.append(f"wrote {root / name}")
-    readme = readme_path(root)
-    parts = _readme_parts(readme.read_text(encoding="utf-8")) if readme.is_file() else None
-    if parts is not None and parts[1] != built.readme_block:
+    stale = _stale_readme(root, built.readme_block)
+    if stale is not None:
+        readme, _, rebuilt = stale
         with atomic_write(readme, "w") as fh:
-            fh.write(parts[0] + built.readme_block + parts[2])
+            fh.write(rebuilt)
         said.append(f"updated the leaderboard summary in {readme}")
     if plot:
         try:
@@ -1220,15 +1213,13 @@ def check(
         if committed != text:
             found = differ(committed, text, name)
             problems.extend(found or [f"{name}: differs from what build writes (whitespace or line ends)"])
-    readme = readme_path(root)
-    if readme.is_file():
-        committed = readme.read_text(encoding="utf-8")
-        parts = _readme_parts(committed)
-        if parts is not None and parts[1] != built.readme_block:
-            found = diff_markdown(committed, parts[0] + built.readme_block + parts[2], README)
-            problems.extend(
-                found or [f"{README}: the leaderboard summary differs from what build writes (whitespace)"]
-            )
+    stale = _stale_readme(root, built.readme_block)
+    if stale is not None:
+        _, committed, rebuilt = stale
+        found = diff_markdown(committed, rebuilt, README)
+        problems.extend(
+            found or [f"{README}: the leaderboard summary differs from what build writes (whitespace)"]
+        )
     return problems
 
 

@@ -90,6 +90,19 @@ def _check(root: Path, data_dir: Path) -> list[str]:
     return lb.check(root, data_dir, n_resamples=FAST)
 
 
+def _bump_camera_digit(path: Path, row_start: str) -> tuple[int, str, str]:
+    """Change the last digit of the Camera cell (4th) of the first row starting with
+    ``row_start`` in a markdown file; returns (line index, old cell, new cell)."""
+    lines = path.read_text().splitlines(keepends=True)
+    i = next(k for k, line in enumerate(lines) if line.startswith(row_start))
+    cells = lines[i].split(" | ")
+    old = cells[3]
+    cells[3] = old[:-1] + str((int(old[-1]) + 1) % 10)
+    lines[i] = " | ".join(cells)
+    path.write_text("".join(lines))
+    return i, old, cells[3]
+
+
 def _rewrite_gz(path: Path, edit: Callable[[str], str]) -> None:
     text = gzip.decompress(path.read_bytes()).decode()
     path.write_bytes(gzip.compress(edit(text).encode()))
@@ -263,17 +276,11 @@ def test_rescoring_matches_the_evaluator(board: Path, v1_data_dir: Path, v1_pred
 
 def test_changing_one_digit_of_the_table_fails_check_precisely(board: Path, v1_data_dir: Path) -> None:
     md = board / lb.MARKDOWN
-    lines = md.read_text().splitlines(keepends=True)
-    i = next(k for k, line in enumerate(lines) if line.startswith("| 1 | [BOX-LS]"))
-    cells = lines[i].split(" | ")
-    old = cells[3]  # Camera
-    cells[3] = old[:-1] + str((int(old[-1]) + 1) % 10)
-    lines[i] = " | ".join(cells)
-    md.write_text("".join(lines))
+    i, old, new = _bump_camera_digit(md, "| 1 | [BOX-LS]")
     problems = _check(board, v1_data_dir)
     assert problems == [
         f"LEADERBOARD.md line {i + 1}: table 'odmd-v1 test', row 'BOX-LS', column 'Camera': "
-        f"committed {cells[3]!r}, build writes {old!r}"
+        f"committed {new!r}, build writes {old!r}"
     ]
 
 
@@ -496,16 +503,10 @@ def test_the_readme_summary_is_generated_and_checked(board: Path, v1_data_dir: P
     assert "### odmd-v1 test" in text and "| BOX-LS |" in text
     assert _check(board, v1_data_dir) == []
 
-    lines = text.splitlines(keepends=True)
-    i = next(k for k, line in enumerate(lines) if line.startswith("| 1 | BOX-LS |"))
-    cells = lines[i].split(" | ")
-    old = cells[3]  # Camera
-    cells[3] = old[:-1] + str((int(old[-1]) + 1) % 10)
-    lines[i] = " | ".join(cells)
-    readme.write_text("".join(lines))
+    i, old, new = _bump_camera_digit(readme, "| 1 | BOX-LS |")
     assert _check(board, v1_data_dir) == [
         f"README.md line {i + 1}: table 'odmd-v1 test (generator v1 + imported robot)', row 'BOX-LS', "
-        f"column 'Camera': committed {cells[3]!r}, build writes {old!r}"
+        f"column 'Camera': committed {new!r}, build writes {old!r}"
     ]
 
 
