@@ -33,6 +33,7 @@ torch = pytest.importorskip("torch")
 
 import odmd_bench  # noqa: E402
 from baselines.dbox.model import DBox, make_inputs, reference_forward  # noqa: E402
+from baselines.dbox.train import make_optimizer  # noqa: E402
 
 IMPLS = ("fast", "reference")
 THREADS = (1, 2)
@@ -54,7 +55,7 @@ def _forward(model: DBox, impl: str) -> Callable[[torch.Tensor], torch.Tensor]:
 
 def _train_step(model: DBox, impl: str) -> Callable[[], float]:
     forward = _forward(model, impl)
-    optimizer = torch.optim.Adam(model.parameters(), lr=1e-3)
+    optimizer = make_optimizer(model)
     rng = np.random.default_rng(0)
 
     def step() -> float:

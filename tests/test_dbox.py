@@ -7,6 +7,7 @@ import subprocess
 import sys
 from collections import OrderedDict
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -15,6 +16,7 @@ torch = pytest.importorskip("torch")
 
 import odmd_bench  # noqa: E402
 from baselines import dbox  # noqa: E402
+from baselines.dbox import model as model_module  # noqa: E402
 from baselines.dbox.model import (  # noqa: E402
     DBox,
     checkpoint_shapes,
@@ -95,15 +97,81 @@ def test_forward_matches_the_equations_step_by_step() -> None:
     assert np.ptp(expected) > 0.1  # a case where a wrong gate would show
 
 
-def test_fast_forward_gradients_match_the_reference() -> None:
-    model = DBox(generator=torch.Generator().manual_seed(3)).double()
-    x = torch.randn(4, 10, 7, dtype=torch.float64, generator=torch.Generator().manual_seed(4))
-    model(x).square().sum().backward()
-    fast = {k: p.grad.clone() for k, p in model.named_parameters()}
+def _grads(model: DBox, forward: Any, x: torch.Tensor) -> tuple[torch.Tensor, dict[str, torch.Tensor]]:
+    """Output and parameter gradients of sum(output^2)."""
     model.zero_grad()
-    reference_forward(model, x).square().sum().backward()
-    for k, p in model.named_parameters():
-        np.testing.assert_allclose(fast[k].numpy(), p.grad.numpy(), rtol=1e-9, atol=1e-12, err_msg=k)
+    out = forward(x)
+    out.square().sum().backward()
+    return out.detach(), {k: p.grad.clone() for k, p in model.named_parameters() if p.grad is not None}
+
+
+def _assert_same_grads(got: dict[str, torch.Tensor], want: dict[str, torch.Tensor], rtol: float) -> None:
+    assert set(got) == set(want) == {k for k, _ in DBox().named_parameters()}
+    for k, g in want.items():
+        scale = float(g.abs().max())  # 0 only where nothing reaches the parameter (U with one step)
+        assert float((got[k] - g).abs().max()) <= rtol * scale, (k, float((got[k] - g).abs().max()), scale)
+
+
+@pytest.mark.parametrize("n_obs", [10, 3, 1])
+def test_fast_forward_gradients_match_the_reference(n_obs: int) -> None:
+    """The hand-written backward pass against autograd through the original's formulation."""
+    model = DBox(n_obs=n_obs, generator=torch.Generator().manual_seed(3)).double()
+    x = torch.randn(4, n_obs, 7, dtype=torch.float64, generator=torch.Generator().manual_seed(4))
+    out, fast = _grads(model, model, x)
+    ref_out, ref = _grads(model, lambda x: reference_forward(model, x), x)
+    np.testing.assert_allclose(out.numpy(), ref_out.numpy(), rtol=1e-12)
+    _assert_same_grads(fast, ref, rtol=1e-10)
+
+
+@pytest.mark.parametrize("onednn", [True, False], ids=["onednn", "plain-torch"])
+def test_float32_paths_match_the_reference(onednn: bool, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Both float32 CPU paths (oneDNN's kernel, plain torch products) give the reference's
+    numbers to float32 rounding, forward and backward, with and without gradients."""
+    if onednn and not model_module.onednn_available():
+        pytest.skip("this torch build has no oneDNN")
+    monkeypatch.setattr(model_module, "onednn_available", lambda: onednn)
+    model = DBox(generator=torch.Generator().manual_seed(5))
+    x = torch.from_numpy(make_inputs(_examples(300, 6), "rel").x)
+    out, fast = _grads(model, model, x)
+    with torch.no_grad():
+        inference = model(x)
+    ref_out, ref = _grads(model, lambda x: reference_forward(model, x), x)
+    assert torch.equal(inference, out)  # the inference path is the same arithmetic
+    assert float((out - ref_out).abs().max()) <= 1e-5 * float(ref_out.abs().max())
+    _assert_same_grads(fast, ref, rtol=1e-4)
+
+
+def test_linear_reads_every_operand_layout() -> None:
+    """Blocks and transposes are read correctly, the slow-path layout (a transposed block) included."""
+    g = torch.Generator().manual_seed(7)
+    big_x = torch.randn(40, 30, generator=g)
+    big_w = torch.randn(50, 30, generator=g)
+    xs = {
+        "contiguous": big_x[:, :20].contiguous(),
+        "block": big_x[:, :20],
+        "transposed block": big_x[:20].t(),
+    }
+    ws = {
+        "contiguous": big_w[:8, :20].contiguous(),
+        "block": big_w[:8, :20],
+        "transposed block": big_w[:20, :8].t(),
+    }
+    add = torch.randn(40, 8, generator=g)
+    for (xn, x), (wn, w) in [(a, b) for a in xs.items() for b in ws.items() if a[1].shape[0] == 40]:
+        want = x @ w.t()
+        for got in (model_module._linear(x, w), model_module._linear(x, w, add=add) - add):
+            assert float((got - want).abs().max()) < 1e-4, (xn, wn)
+
+
+def test_an_input_that_needs_a_gradient_gets_it() -> None:
+    model = DBox(generator=torch.Generator().manual_seed(8)).double()
+    x = torch.randn(3, 10, 7, dtype=torch.float64, generator=torch.Generator().manual_seed(9))
+    xa = x.clone().requires_grad_()
+    model(xa).sum().backward()
+    xb = x.clone().requires_grad_()
+    reference_forward(model, xb).sum().backward()
+    assert xa.grad is not None and xb.grad is not None
+    np.testing.assert_allclose(xa.grad.numpy(), xb.grad.numpy(), rtol=1e-12)
 
 
 def test_parameter_layout_is_the_original_release() -> None:
