@@ -67,7 +67,7 @@ from odmd_bench.commands.data import data_dir_option
     type=click.IntRange(min=0),
     default=0,
     show_default=True,
-    help="CPU threads for torch (0: torch's default). Results are reproducible for a given count.",
+    help="CPU threads for torch (0: torch's default). Results are reproducible for a given count on a given kind of CPU.",
 )
 @data_dir_option
 def train_dbox(
