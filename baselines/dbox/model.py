@@ -18,8 +18,8 @@ flattened observation by observation (70 numbers); the output is ``linears.6(d)`
 
 The implementation computes exactly that, with a hand-written backward pass and
 every matrix product in one call of the fastest float32 kernel torch has on the CPU
-(see "the fast implementation" below): a training step is about 2.5 times, inference
-about 3.6 times faster than the original release's formulation on a 2-core AMD EPYC
+(see "the fast implementation" below): a training step is 2.5-2.9 times, inference
+3.1-3.9 times faster than the original release's formulation on a 2-core AMD EPYC
 (``benchmarks/bench_dbox.py``). :func:`reference_forward` is the original's
 straightforward per-gate version, kept for tests and benchmarks and used for an input
 that needs a gradient itself.
