@@ -105,7 +105,8 @@ def learning_rate(
 
 def make_optimizer(model: torch.nn.Module, lr: float = LEARNING_RATE) -> torch.optim.Adam:
     """The paper's optimizer, Adam, in PyTorch's fused implementation (one kernel for all
-    parameters: the same update, a third of the time of the per-parameter loop on a CPU)."""
+    parameters: the same update rule, equal to rounding, in a third of the time of the
+    per-parameter loop on a CPU)."""
     return torch.optim.Adam(model.parameters(), lr=lr, fused=True)
 
 
