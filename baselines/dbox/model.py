@@ -201,8 +201,6 @@ class _Packed:
         self.m2 = torch.cat([u[:, h3:], w[:, h3:], b[:, h3:], v[:, h3:]], 0).t().contiguous()
         self.m1_fwd = self.m1.clone()
         self.m1_fwd[2 * HIDDEN :] *= 2.0  # sigmoid(2 z) gives tanh(z)
-        self.m1t = self.m1.t().contiguous()  # for the backward pass (oneDNN wants x contiguous)
-        self.m2t = self.m2.t().contiguous()
         self.fc_w = list(fc[0::2])
         self.fc_b = list(fc[1::2])
 
@@ -285,11 +283,12 @@ def _backward(grad: torch.Tensor, saved: dict[str, Any], pk: _Packed) -> list[to
     dc: torch.Tensor | None = None  # d loss / d c_t through step t + 1
     g_m1: torch.Tensor | None = None
     g_m2: torch.Tensor | None = None
+    m1t, m2t = pk.m1.t().contiguous(), pk.m2.t().contiguous()  # oneDNN wants x contiguous
     for t in reversed(range(n)):
         qt, (ifg, o, th) = q[t], gates[t]
         i, f, g = ifg[:hs], ifg[hs : 2 * hs], ifg[2 * hs :]
         dz_o = (dh * th).mul_(o - o * o)  # o = sigmoid(z_o), h = o tanh(c_t)
-        d_q2 = _linear(pk.m2t, dz_o.t())  # (264, B): h_(t-1); x_t; 1; c_t
+        d_q2 = _linear(m2t, dz_o.t())  # (264, B): h_(t-1); x_t; 1; c_t
         dct = (dh * o).mul_(1.0 - th * th).add_(d_q2[_CT - _H0 :])
         if dc is not None:
             dct.add_(dc)
@@ -300,7 +299,7 @@ def _backward(grad: torch.Tensor, saved: dict[str, Any], pk: _Packed) -> list[to
         g_m1 = _linear(dz, qt[:_K], add=g_m1)  # (384, 264)
         g_m2 = _linear(dz_o, qt[_H0:], add=g_m2)  # (128, 264)
         if t:
-            d_q1 = _linear(pk.m1t, dz.t())  # (264, B): c_(t-1); h_(t-1); x_t; 1
+            d_q1 = _linear(m1t, dz.t())  # (264, B): c_(t-1); h_(t-1); x_t; 1
             dc = dct.mul_(f).add_(d_q1[_C0:_H0])
             dh = d_q1[_H0:_X0].add_(d_q2[: _X0 - _H0])
     if g_m1 is None or g_m2 is None:
