@@ -6,8 +6,8 @@ import json
 import subprocess
 import sys
 from collections import OrderedDict
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import pytest
@@ -97,7 +97,9 @@ def test_forward_matches_the_equations_step_by_step() -> None:
     assert np.ptp(expected) > 0.1  # a case where a wrong gate would show
 
 
-def _grads(model: DBox, forward: Any, x: torch.Tensor) -> tuple[torch.Tensor, dict[str, torch.Tensor]]:
+def _grads(
+    model: DBox, forward: Callable[[torch.Tensor], torch.Tensor], x: torch.Tensor
+) -> tuple[torch.Tensor, dict[str, torch.Tensor]]:
     """Output and parameter gradients of sum(output^2)."""
     model.zero_grad()
     out = forward(x)
@@ -145,19 +147,23 @@ def test_linear_reads_every_operand_layout() -> None:
     """Blocks and transposes are read correctly, the slow-path layout (a transposed block) included."""
     g = torch.Generator().manual_seed(7)
     big_x = torch.randn(40, 30, generator=g)
+    big_xt = torch.randn(30, 50, generator=g)
     big_w = torch.randn(50, 30, generator=g)
-    xs = {
+    xs = {  # each (40, 20)
         "contiguous": big_x[:, :20].contiguous(),
         "block": big_x[:, :20],
-        "transposed block": big_x[:20].t(),
+        "transposed": big_x[:, :20].contiguous().t().contiguous().t(),
+        "transposed block": big_xt[:20, :40].t(),
     }
-    ws = {
+    ws = {  # each (8, 20)
         "contiguous": big_w[:8, :20].contiguous(),
         "block": big_w[:8, :20],
+        "transposed": big_w[:20, :8].contiguous().t(),
         "transposed block": big_w[:20, :8].t(),
     }
     add = torch.randn(40, 8, generator=g)
-    for (xn, x), (wn, w) in [(a, b) for a in xs.items() for b in ws.items() if a[1].shape[0] == 40]:
+    for (xn, x), (wn, w) in [(a, b) for a in xs.items() for b in ws.items()]:
+        assert x.shape == (40, 20) and w.shape == (8, 20), (xn, wn)
         want = x @ w.t()
         for got in (model_module._linear(x, w), model_module._linear(x, w, add=add) - add):
             assert float((got - want).abs().max()) < 1e-4, (xn, wn)
