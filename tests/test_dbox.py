@@ -557,19 +557,18 @@ def test_shipped_p_z_weights_give_the_odms_numbers_the_readme_states(
 def test_shipped_p_weights_give_the_numbers_the_readme_states(
     shipped_p_on_paper_test: dict[str, float],
 ) -> None:
-    """The README and the leaderboard quote these; float32 differences between CPUs stay far below 0.005."""
-    stated = {"normal": 1.89, "camera": 2.55, "object": 2.78, "robot": 11.70, "all": 4.73}
-    assert {k: round(v, 2) for k, v in shipped_p_on_paper_test.items()} == stated
+    """The README and the leaderboard quote these rounded to two decimals (1.82 / 2.55 / 2.67 / 11.42, 4.61).
+
+    Pinned to four decimals with a tolerance of 5e-4: the two kernel paths (oneDNN, plain
+    torch) differ by about 1e-5 here, and All lies 7e-5 below a rounding boundary, so
+    comparing rounded values would fail on a CPU whose last bits differ.
+    """
+    pinned = {"normal": 1.8161, "camera": 2.5497, "object": 2.6693, "robot": 11.4246, "all": 4.6149}
+    got = shipped_p_on_paper_test
+    assert set(got) == set(pinned)
+    assert all(abs(got[k] - pinned[k]) < 5e-4 for k in pinned), got
 
 
-@pytest.mark.xfail(
-    strict=True,
-    raises=AssertionError,
-    reason="issue 5 bound met on normal, camera, object and All but not exactly on robot: the "
-    "shipped p weights (100,000 CPU steps) give 1.89 / 2.55 / 2.78 / 11.701, All 4.73 on "
-    "odmd-paper test; robot equals the paper's 11.7 at its one-decimal precision and is "
-    "0.001 above it exactly. Remove this marker when weights pass (strict: an unexpected pass fails).",
-)
 def test_shipped_p_weights_meet_the_issue_bound(shipped_p_on_paper_test: dict[str, float]) -> None:
     """The paper's DBox_p after 100K iterations: 2.2 / 3.0 / 3.0 / 11.7, All 5.0."""
     bound = {"normal": 2.2, "camera": 3.0, "object": 3.0, "robot": 11.7, "all": 5.0}
