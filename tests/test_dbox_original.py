@@ -2,19 +2,19 @@
 
 The original release's checkpoint (``DBox_pretrained_paper.pt``) is not among the
 shared files, so its published numbers cannot be scored here. What can be checked is
-everything between such a file and a score: the original evaluation recipe, written
-out below from the release's description (sequence input, f_Rel normalisation by the
-first camera offset, increments, the missing-detection filter, float32 throughout,
-the peephole LSTM and the six concatenating layers), is applied to the original
-pickles; odmd-bench is run on the imported ``odmd-paper`` sets with the same
-checkpoint file (the shipped ``p`` weights, which are in the original key layout and
-give realistic depths). Every prediction must agree to float32 rounding, so any
-checkpoint in that layout scores the same in odmd-bench as in the original code.
+everything between such a file and a score. The original evaluation recipe (sequence
+input, f_Rel normalisation by the first camera offset, increments, the
+missing-detection filter, float32 throughout), written out below, and the forward pass
+as the release wrote it (:func:`reference_forward`, which ``test_dbox.py`` checks
+against the equations) are applied to the original pickles; odmd-bench is run on the
+imported ``odmd-paper`` sets with the same checkpoint file (the shipped ``p`` weights,
+which are in the original key layout and give realistic depths). Every prediction must
+agree to float32 rounding, so any checkpoint in that layout scores the same in
+odmd-bench as in the original code.
 """
 
 from __future__ import annotations
 
-from collections import OrderedDict
 from pathlib import Path
 
 import numpy as np
@@ -24,10 +24,10 @@ torch = pytest.importorskip("torch")
 
 import odmd_bench  # noqa: E402
 from baselines import dbox  # noqa: E402
+from baselines.dbox.model import DBox, reference_forward  # noqa: E402
 from odmd_bench.importer import safe_unpickle  # noqa: E402
 
 N_OBS = 10
-HS = 128
 FILES = {"normal": "normal", "camera": "perturb_motion", "object": "perturb_detection", "robot": "robot"}
 
 
@@ -56,32 +56,9 @@ def original_inputs(raw: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return seq, norm, bboxes[-1, -1]
 
 
-def original_forward(state: OrderedDict, x: torch.Tensor) -> torch.Tensor:
-    """The released network's forward pass, in its own operations, float32."""
-    w, u, b, v = state["W"], state["U"], state["bias"], state["V"]
-    bs = x.shape[0]
-    h = torch.zeros(bs, HS)
-    c = torch.zeros(bs, HS)
-    for t in range(x.shape[1]):
-        x_t = x[:, t, :]
-        gates = x_t @ w + h @ u + b + c @ v
-        i, f, g = (
-            torch.sigmoid(gates[:, :HS]),
-            torch.sigmoid(gates[:, HS : 2 * HS]),
-            torch.tanh(gates[:, 2 * HS : 3 * HS]),
-        )
-        c = f * c + i * g
-        gates = x_t @ w + h @ u + b + c @ v
-        h = torch.sigmoid(gates[:, 3 * HS :]) * torch.tanh(c)
-    x_cat = x.reshape(bs, -1)
-    d = h
-    for k in range(6):
-        d = torch.relu(torch.cat((d, x_cat), 1) @ state[f"linears.{k}.weight"].T + state[f"linears.{k}.bias"])
-    return (d @ state["linears.6.weight"].T + state["linears.6.bias"])[:, 0]
-
-
 @pytest.fixture(scope="module")
-def checkpoint() -> tuple[Path, OrderedDict]:
+def checkpoint() -> tuple[Path, DBox]:
+    """The checkpoint file, and the network holding its tensors as the original code would."""
     path = dbox.SHIPPED["p"]
     state = torch.load(path, map_location="cpu", weights_only=True)
     assert list(state) == [
@@ -92,7 +69,9 @@ def checkpoint() -> tuple[Path, OrderedDict]:
         *(f"linears.{k}.{p}" for k in range(7) for p in ("weight", "bias")),
     ]
     assert all(t.dtype == torch.float32 for t in state.values())
-    return path, state
+    net = DBox()
+    net.load_state_dict(state)
+    return path, net
 
 
 @pytest.mark.parametrize("split", ["val", "test"])
@@ -100,19 +79,20 @@ def checkpoint() -> tuple[Path, OrderedDict]:
 def test_the_original_recipe_and_odmd_bench_give_the_same_predictions(
     split: str,
     set_name: str,
-    checkpoint: tuple[Path, OrderedDict],
+    checkpoint: tuple[Path, DBox],
     original_release: Path,
     paper_data_dir: Path,
 ) -> None:
     torch.set_num_threads(1)
-    path, state = checkpoint
+    path, net = checkpoint
     raw = safe_unpickle((original_release / "odmd" / split / f"{split}_{FILES[set_name]}.pk").read_bytes())
     seq, norm, depth = original_inputs(raw)
     with torch.no_grad():
-        theirs = original_forward(state, torch.from_numpy(seq)).numpy() * norm
-    ours = dbox.predict(odmd_bench.load(split, set_name, "odmd-paper", paper_data_dir), weights=path)
+        theirs = reference_forward(net, torch.from_numpy(seq)).numpy() * norm
+    imported = odmd_bench.load(split, set_name, "odmd-paper", paper_data_dir)
+    ours = dbox.predict(imported, weights=path)
 
-    np.testing.assert_array_equal(odmd_bench.load(split, set_name, "odmd-paper", paper_data_dir).depth, depth)
+    np.testing.assert_array_equal(imported.depth, depth)
     np.testing.assert_allclose(ours, theirs, rtol=2e-5, atol=0)
     error_theirs = np.mean(np.abs(theirs - depth) / depth)
     error_ours = np.mean(np.abs(ours - depth) / depth)
