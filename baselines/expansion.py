@@ -49,9 +49,9 @@ The output never holds NaN or infinity.
 from __future__ import annotations
 
 import numpy as np
+from odmd_bench_baselines.parallax import Combine, Fill, check_combine, combine_halves, endpoint_boxes
 
 import odmd_bench
-from baselines.parallax import Combine, Fill, check_combine, combine_halves, endpoint_boxes
 
 #: Depth (metres) where the width solution is not finite, as the original release uses.
 DEFAULT_FALLBACK_DEPTH = 1.0

@@ -82,7 +82,7 @@ what to use on ODMS-detection, whose camera moves along ``z`` only, so that late
 parallax carries no information there anyway.
 
 Hyperparameters (:data:`DEFAULT_PARAMS`) were chosen on the ``val`` sets only by
-``python -m baselines.robust_search`` (see that module for the grid and the command).
+``python -m odmd_bench_baselines.robust_search`` (see that module for the grid and the command).
 """
 
 from __future__ import annotations
@@ -119,7 +119,7 @@ class NoiseModel:
 
 @dataclass(frozen=True)
 class RobustParams:
-    """Hyperparameters of the robust fit (chosen on val by :mod:`baselines.robust_search`).
+    """Hyperparameters of the robust fit (chosen on val by :mod:`odmd_bench_baselines.robust_search`).
 
     Attributes:
         loss: ``"cauchy"``, ``"huber"``, ``"soft_l1"`` or ``"linear"`` (plain least squares).
@@ -178,7 +178,7 @@ class RobustParams:
             raise UsageError("invalid robust-method parameters", problems)
 
 
-#: Chosen on the val sets by ``python -m baselines.robust_search`` (never on test).
+#: Chosen on the val sets by ``python -m odmd_bench_baselines.robust_search`` (never on test).
 DEFAULT_PARAMS = RobustParams()
 
 Intrinsics = tuple[float, float, float, float, float, float]

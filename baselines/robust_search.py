@@ -2,9 +2,9 @@
 
 Rerun with::
 
-    python -m baselines.robust_search                       # odmd-paper val (needs `odmd-bench import`)
-    python -m baselines.robust_search --benchmark odmd-v1   # or the generated val sets
-    python -m baselines.robust_search --quick               # a smaller grid, for a check
+    python -m odmd_bench_baselines.robust_search                       # odmd-paper val (needs `odmd-bench import`)
+    python -m odmd_bench_baselines.robust_search --benchmark odmd-v1   # or the generated val sets
+    python -m odmd_bench_baselines.robust_search --quick               # a smaller grid, for a check
 
 It never reads a ``test`` split: the split is fixed to ``val`` here. The criterion is
 ``All`` (the mean over the four sets of the mean percent error), averaged over the
@@ -23,7 +23,7 @@ benchmarks given. The grid, in two stages:
 
 Every configuration's scores go to a CSV table (default
 ``baselines/robust_search_results.csv``), best first; the best configuration is
-printed as the Python literal that :data:`baselines.robust.DEFAULT_PARAMS` holds.
+printed as the Python literal that :data:`odmd_bench_baselines.robust.DEFAULT_PARAMS` holds.
 """
 
 from __future__ import annotations
@@ -38,10 +38,10 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
+from odmd_bench_baselines.robust import DEFAULT_PARAMS, NoiseModel, RobustParams, predict
 
-from baselines.robust import DEFAULT_PARAMS, NoiseModel, RobustParams, predict
 from odmd_bench import Examples, load_split
-from odmd_bench.io import atomic_write
+from odmd_bench.data.io import atomic_write
 
 SPLIT = "val"  # never "test": hyperparameters are chosen on val only
 DEFAULT_OUT = Path(__file__).with_name("robust_search_results.csv")

@@ -19,9 +19,9 @@ import time
 
 import numpy as np
 import pytest
+from odmd_bench_baselines import box_ls
 
 import odmd_bench
-from baselines import box_ls
 
 BATCH = 1_000_000
 REFERENCE_BATCH = 5_000

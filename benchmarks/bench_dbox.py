@@ -15,7 +15,7 @@ Each case runs with 1 torch thread and with 2 (this machine's cores):
 - ``impl="fast"`` is ``DBox.forward`` (and its hand-written backward) as shipped;
   ``impl="plain"`` is the same code with oneDNN's kernel turned off (plain torch
   products, as on a torch build without oneDNN); ``impl="reference"`` is
-  :func:`baselines.dbox.model.reference_forward`, the original release's forward
+  :func:`odmd_bench_baselines.dbox.model.reference_forward`, the original release's forward
   written as it was (all four gate blocks computed twice per observation, per-step
   slices, ``cat`` before every FC layer) with autograd's backward. All are measured in
   the same run on the same data, so ``median(reference) / median(fast)`` is the
@@ -36,10 +36,11 @@ import pytest
 
 torch = pytest.importorskip("torch")
 
+from odmd_bench_baselines.dbox import model as model_module  # noqa: E402
+from odmd_bench_baselines.dbox.model import DBox, make_inputs, reference_forward  # noqa: E402
+from odmd_bench_baselines.dbox.train import make_optimizer  # noqa: E402
+
 import odmd_bench  # noqa: E402
-from baselines.dbox import model as model_module  # noqa: E402
-from baselines.dbox.model import DBox, make_inputs, reference_forward  # noqa: E402
-from baselines.dbox.train import make_optimizer  # noqa: E402
 
 IMPLS = ("fast", "plain", "reference")
 T = TypeVar("T")

@@ -24,8 +24,8 @@ import numpy as np
 import pytest
 
 import odmd_bench
-from odmd_bench.data import ensure_generated
-from odmd_bench.predictions import write_predictions
+from odmd_bench.data.store import ensure_generated
+from odmd_bench.evaluation.predictions import write_predictions
 
 ROUNDS = 7
 IMPORTS = "import pandas, h5py, click, numpy"

@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 
 from odmd_bench import generate, stream
-from odmd_bench.config import PRESETS
+from odmd_bench.data.config import PRESETS
 
 BATCH = 10_000
 
@@ -138,7 +138,7 @@ def test_ratio(benchmark) -> None:
 
 def test_generate_command(benchmark, tmp_path) -> None:
     """All 21,600 examples of odmd-v1, files written and verified (no interpreter start)."""
-    from odmd_bench.data import ensure_generated
+    from odmd_bench.data.store import ensure_generated
 
     counter = iter(range(1000))
     benchmark.pedantic(

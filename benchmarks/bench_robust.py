@@ -19,9 +19,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from odmd_bench_baselines import robust
 
 import odmd_bench
-from baselines import robust
 
 PER_SET = 3_000
 ORIGINAL = Path(__file__).resolve().parents[2] / "shared" / "odmd-original"
@@ -56,7 +56,7 @@ def paper_test(tmp_path_factory: pytest.TempPathFactory) -> odmd_bench.Examples:
     src = Path(os.environ.get("ODMD_ORIGINAL", ORIGINAL))
     if not (src / "odmd").is_dir():
         pytest.skip(f"the original release is not at {src}")
-    from odmd_bench.importer import import_release
+    from odmd_bench.data.importer import import_release
 
     data = tmp_path_factory.mktemp("paper")
     import_release(src, data)

@@ -8,8 +8,10 @@ Importing the package loads numpy and h5py only; torch is needed by DBox alone.
 (8, 10, 4)
 """
 
-from odmd_bench.config import PRESETS, CameraConfig, GeneratorConfig
-from odmd_bench.data import ensure_generated, load, load_split
+from odmd_bench.data.config import PRESETS, CameraConfig, GeneratorConfig
+from odmd_bench.data.examples import Examples, fill_missing, nearest_detected_index
+from odmd_bench.data.generator import GENERATOR_VERSION, generate, stream
+from odmd_bench.data.store import ensure_generated, load, load_split
 from odmd_bench.errors import (
     ConfigError,
     DataError,
@@ -18,8 +20,6 @@ from odmd_bench.errors import (
     UsageError,
     ValidationError,
 )
-from odmd_bench.examples import Examples, fill_missing, nearest_detected_index
-from odmd_bench.generate import GENERATOR_VERSION, generate, stream
 
 __version__ = "0.1.0"
 

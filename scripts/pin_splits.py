@@ -16,9 +16,9 @@ import json
 import tempfile
 from pathlib import Path
 
-from odmd_bench.generate import GENERATOR_VERSION, generate
-from odmd_bench.importer import import_release
-from odmd_bench.io import content_sha256, read_set, set_arrays, write_sets
+from odmd_bench.data.generator import GENERATOR_VERSION, generate
+from odmd_bench.data.importer import import_release
+from odmd_bench.data.io import content_sha256, read_set, set_arrays, write_sets
 
 ROOT = Path(__file__).resolve().parent.parent
 SIZES = {"val": 2400, "test": 3000}

@@ -35,7 +35,7 @@ def original_release() -> Path:
 @pytest.fixture(scope="session")
 def paper_data_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A data folder holding the imported ``odmd-paper`` and ``odms-detection`` benchmarks."""
-    from odmd_bench.importer import import_release
+    from odmd_bench.data.importer import import_release
 
     src = original_dir()
     data = tmp_path_factory.mktemp("paper-data")
@@ -46,7 +46,7 @@ def paper_data_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
 @pytest.fixture(scope="session")
 def v1_data_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A data folder holding the generated ``odmd-v1`` val and test files."""
-    from odmd_bench.data import ensure_generated
+    from odmd_bench.data.store import ensure_generated
 
     data = tmp_path_factory.mktemp("v1-data")
     ensure_generated("odmd-v1", ("val", "test"), data)

@@ -13,10 +13,10 @@ from types import ModuleType
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from odmd_bench_baselines import box_ls, expansion, parallax
 
 import odmd_bench
-from baselines import box_ls, expansion, parallax
-from odmd_bench.cli import cli
+from odmd_bench.cli.main import cli
 
 METHODS: tuple[ModuleType, ...] = (box_ls, parallax, expansion)
 INTRINSICS = {"fx": 205.5, "fy": 205.5, "cx": 320.5, "cy": 240.5, "image_width": 640, "image_height": 480}
@@ -504,16 +504,16 @@ def test_baseline_command_usage_errors_exit_2(tmp_path: Path, args: list[str], m
 
 
 def test_baseline_command_missing_method_is_a_clear_error(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setitem(sys.modules, "baselines.dbox", None)  # as if it were not installed
+    monkeypatch.setitem(sys.modules, "odmd_bench_baselines.dbox", None)  # as if it were not installed
     result = CliRunner().invoke(cli, ["baseline", "dbox"])
     assert result.exit_code == 2
-    assert "baselines.dbox" in result.output
+    assert "odmd_bench_baselines.dbox" in result.output
     assert "internal error" not in result.output
 
 
 def test_analytical_baselines_and_the_command_do_not_import_torch() -> None:
     code = (
-        "import sys, baselines.box_ls, baselines.parallax, baselines.expansion, odmd_bench.cli;"
+        "import sys, odmd_bench_baselines.box_ls, odmd_bench_baselines.parallax, odmd_bench_baselines.expansion, odmd_bench.cli;"
         "sys.exit('torch' in sys.modules)"
     )
     assert subprocess.run([sys.executable, "-c", code], check=False).returncode == 0
@@ -522,7 +522,7 @@ def test_analytical_baselines_and_the_command_do_not_import_torch() -> None:
 def test_robust_mode_option_reaches_the_method(v1_data_dir, tmp_path) -> None:
     from click.testing import CliRunner
 
-    from odmd_bench.cli import cli
+    from odmd_bench.cli.main import cli
 
     out = tmp_path / "scale.csv"
     args = ["baseline", "robust", "--split", "val", "--data-dir", str(v1_data_dir), "-o", str(out)]

@@ -4,7 +4,7 @@ import json
 
 from click.testing import CliRunner
 
-from odmd_bench.cli import cli
+from odmd_bench.cli.main import cli
 
 
 def test_generate_writes_and_then_reuses(tmp_path) -> None:

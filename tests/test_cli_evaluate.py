@@ -15,12 +15,12 @@ import pytest
 from click.testing import CliRunner
 
 import odmd_bench
-from odmd_bench.benchmarks import set_file
-from odmd_bench.cli import cli
-from odmd_bench.evaluate import evaluate
-from odmd_bench.io import write_sets
-from odmd_bench.predictions import write_predictions
-from odmd_bench.report import PER_EXAMPLE_COLUMNS
+from odmd_bench.cli.main import cli
+from odmd_bench.data.io import write_sets
+from odmd_bench.data.registry import set_file
+from odmd_bench.evaluation.predictions import write_predictions
+from odmd_bench.evaluation.report import PER_EXAMPLE_COLUMNS
+from odmd_bench.evaluation.scoring import evaluate
 
 SETS = ("normal", "camera", "object", "robot")
 N = {"normal": 6, "camera": 5, "object": 4, "robot": 3}
@@ -218,7 +218,7 @@ def test_evaluate_never_imports_torch(data: Path, tmp_path: Path) -> None:
     script = (
         "import sys\n"
         "from click.testing import CliRunner\n"
-        "from odmd_bench.cli import cli\n"
+        "from odmd_bench.cli.main import cli\n"
         f"r = CliRunner().invoke(cli, ['evaluate', {str(p)!r}, '--benchmark', 'odmd-paper', '--format', 'json'])\n"
         "assert r.exit_code == 0, r.output\n"
         f"r = CliRunner().invoke(cli, ['compare', {str(p)!r}, {str(p)!r}, '--benchmark', 'odmd-paper'])\n"
@@ -231,7 +231,7 @@ def test_evaluate_never_imports_torch(data: Path, tmp_path: Path) -> None:
 
 
 def test_missing_generated_benchmark_is_generated_first(tmp_path: Path) -> None:
-    from odmd_bench.data import manifest
+    from odmd_bench.data.store import manifest
 
     sizes = {s: manifest("odmd-v1")["splits"]["val"][s]["n"] for s in SETS}
     p = tmp_path / "ones.csv"
@@ -241,7 +241,7 @@ def test_missing_generated_benchmark_is_generated_first(tmp_path: Path) -> None:
         [
             sys.executable,
             "-c",
-            "from odmd_bench.cli import main; main()",
+            "from odmd_bench.cli.main import main; main()",
             "evaluate",
             str(p),
             "--format",

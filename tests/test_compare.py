@@ -9,12 +9,20 @@ import numpy as np
 import pytest
 
 import odmd_bench
-from odmd_bench import UsageError, ValidationError, compare
-from odmd_bench.benchmarks import set_file
-from odmd_bench.compare import A_BETTER, B_BETTER, TIE, compare_errors, compare_files, compare_results
-from odmd_bench.evaluate import evaluate
-from odmd_bench.io import write_sets
-from odmd_bench.predictions import write_predictions
+from odmd_bench import UsageError, ValidationError
+from odmd_bench.data.io import write_sets
+from odmd_bench.data.registry import set_file
+from odmd_bench.evaluation import compare
+from odmd_bench.evaluation.compare import (
+    A_BETTER,
+    B_BETTER,
+    TIE,
+    compare_errors,
+    compare_files,
+    compare_results,
+)
+from odmd_bench.evaluation.predictions import write_predictions
+from odmd_bench.evaluation.scoring import evaluate
 
 SETS = ("normal", "camera", "object", "robot")
 

@@ -5,7 +5,7 @@ import json
 import pytest
 
 from odmd_bench import ConfigError, GeneratorConfig
-from odmd_bench.config import HSR_GRASP_CAMERA, PRESETS, CameraConfig, get_preset
+from odmd_bench.data.config import HSR_GRASP_CAMERA, PRESETS, CameraConfig, get_preset
 
 
 def test_presets_follow_the_paper() -> None:

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 import odmd_bench
-from odmd_bench.benchmarks import set_file
-from odmd_bench.data import build_set, ensure_generated, manifest
-from odmd_bench.io import atomic_write, content_sha256, read_set, set_arrays
+from odmd_bench.data.io import atomic_write, content_sha256, read_set, set_arrays
+from odmd_bench.data.registry import set_file
+from odmd_bench.data.store import build_set, ensure_generated, manifest
 
 
 @pytest.mark.parametrize("split", ["val", "test"])
@@ -74,7 +74,7 @@ def test_interrupted_write_leaves_the_good_file(tmp_path) -> None:
 
 
 def test_interrupted_generation_leaves_nothing_half_written(tmp_path, monkeypatch) -> None:
-    import odmd_bench.io as io_mod
+    import odmd_bench.data.io as io_mod
 
     def boom(*args, **kwargs):
         raise KeyboardInterrupt
@@ -105,7 +105,7 @@ def test_bad_names_list_the_valid_ones(tmp_path) -> None:
 
 
 def test_data_dir_default_and_env(tmp_path, monkeypatch) -> None:
-    from odmd_bench.benchmarks import default_data_dir
+    from odmd_bench.data.registry import default_data_dir
 
     monkeypatch.setenv("ODMD_BENCH_DATA", str(tmp_path / "d"))
     assert default_data_dir() == tmp_path / "d"
@@ -115,7 +115,7 @@ def test_data_dir_default_and_env(tmp_path, monkeypatch) -> None:
 
 
 def test_read_set_round_trip(tmp_path) -> None:
-    from odmd_bench.io import write_sets
+    from odmd_bench.data.io import write_sets
 
     ex = odmd_bench.generate(50, perturbation="both", rng=2)
     write_sets(tmp_path / "x.h5", {"object": ex})

@@ -14,19 +14,20 @@ import pytest
 
 torch = pytest.importorskip("torch")
 
-import odmd_bench  # noqa: E402
-from baselines import dbox  # noqa: E402
-from baselines.dbox import model as model_module  # noqa: E402
-from baselines.dbox.model import (  # noqa: E402
+from odmd_bench_baselines import dbox  # noqa: E402
+from odmd_bench_baselines.dbox import model as model_module  # noqa: E402
+from odmd_bench_baselines.dbox.model import (  # noqa: E402
     DBox,
     checkpoint_shapes,
     make_inputs,
     predict_depth,
     reference_forward,
 )
-from baselines.dbox.train import learning_rate, train  # noqa: E402
+from odmd_bench_baselines.dbox.train import learning_rate, train  # noqa: E402
+
+import odmd_bench  # noqa: E402
+from odmd_bench.data.examples import Examples  # noqa: E402
 from odmd_bench.errors import DataError, UsageError  # noqa: E402
-from odmd_bench.examples import Examples  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -352,7 +353,7 @@ def test_shipped_weights_load_and_record_how_they_were_made(name: str) -> None:
     assert record["command"].startswith("odmd-bench train-dbox")
     assert f"--config {name}" in record["command"]
     assert record["best_step"] <= record["steps_done"] == record["steps"]
-    assert record["weights_sha256"] == odmd_bench.io.file_sha256(path)
+    assert record["weights_sha256"] == odmd_bench.data.io.file_sha256(path)
     assert path.stat().st_size < 5_000_000
 
 
@@ -462,7 +463,7 @@ def test_a_second_cycle_starts_from_given_weights(tmp_path: Path) -> None:
     fresh = train("p", 5, tmp_path / "three", seed=1, lr=1e-4, **opts)  # type: ignore[arg-type]
     assert second.losses != fresh.losses  # it did not start from the random init
     record = json.loads((tmp_path / "two" / "dbox_p.json").read_text())
-    assert record["init"]["sha256"] == odmd_bench.io.file_sha256(first.weights)
+    assert record["init"]["sha256"] == odmd_bench.data.io.file_sha256(first.weights)
     assert record["lr"] == 1e-4
     with pytest.raises(UsageError, match="--init weights not found"):
         train("p", 5, tmp_path / "four", init=tmp_path / "nope.pt", **opts)  # type: ignore[arg-type]
@@ -482,10 +483,10 @@ def test_training_refuses_to_overwrite_or_resume_the_wrong_run(tmp_path: Path) -
 
 
 def test_train_dbox_command(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    import odmd_bench_baselines.dbox.train as train_module
     from click.testing import CliRunner
 
-    import baselines.dbox.train as train_module
-    from odmd_bench.cli import cli
+    from odmd_bench.cli.main import cli
 
     monkeypatch.setattr(train_module.odmd_bench, "load_split", lambda *a, **k: _tiny_val())
     out = tmp_path / "run"
@@ -523,7 +524,7 @@ def _baseline_dbox_scores(
     """``baseline dbox`` + ``evaluate --format json``, as a user runs them: mean % error per set and All."""
     from click.testing import CliRunner
 
-    from odmd_bench.cli import cli
+    from odmd_bench.cli.main import cli
 
     preds = out / "dbox.csv"
     common = ["--benchmark", benchmark, "--data-dir", str(data_dir)]
@@ -581,7 +582,7 @@ def test_shipped_p_weights_meet_the_issue_bound(shipped_p_on_paper_test: dict[st
 
 def test_the_package_and_the_evaluator_never_import_torch() -> None:
     code = (
-        "import sys; import odmd_bench, odmd_bench.evaluate, odmd_bench.metrics, odmd_bench.cli, "
-        "baselines.dbox; assert 'torch' not in sys.modules, 'torch was imported'"
+        "import sys; import odmd_bench, odmd_bench.evaluation.scoring, odmd_bench.evaluation.metrics, odmd_bench.cli.main, "
+        "odmd_bench_baselines.dbox; assert 'torch' not in sys.modules, 'torch was imported'"
     )
     subprocess.run([sys.executable, "-c", code], check=True, cwd=REPO)

@@ -22,10 +22,11 @@ import pytest
 
 torch = pytest.importorskip("torch")
 
+from odmd_bench_baselines import dbox  # noqa: E402
+from odmd_bench_baselines.dbox.model import DBox, reference_forward  # noqa: E402
+
 import odmd_bench  # noqa: E402
-from baselines import dbox  # noqa: E402
-from baselines.dbox.model import DBox, reference_forward  # noqa: E402
-from odmd_bench.importer import safe_unpickle  # noqa: E402
+from odmd_bench.data.importer import safe_unpickle  # noqa: E402
 
 N_OBS = 10
 FILES = {"normal": "normal", "camera": "perturb_motion", "object": "perturb_detection", "robot": "robot"}

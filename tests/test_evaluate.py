@@ -20,10 +20,10 @@ from hypothesis import strategies as st
 
 import odmd_bench
 from odmd_bench import Examples, OdmdError, UsageError, ValidationError, fill_missing
-from odmd_bench.benchmarks import set_file
-from odmd_bench.evaluate import SHOWN, evaluate, read_predictions
-from odmd_bench.io import write_sets
-from odmd_bench.predictions import write_predictions
+from odmd_bench.data.io import write_sets
+from odmd_bench.data.registry import set_file
+from odmd_bench.evaluation.predictions import write_predictions
+from odmd_bench.evaluation.scoring import SHOWN, evaluate, read_predictions
 
 BENCH = "odmd-paper"
 SIZES = {
@@ -391,7 +391,7 @@ def _sizes(bench: str, split: str) -> dict[str, int]:
     return (
         dict(SIZES[split])
         if bench == BENCH
-        else {s: 3 for s in odmd_bench.benchmarks.get_benchmark(bench).sets}
+        else {s: 3 for s in odmd_bench.data.registry.get_benchmark(bench).sets}
     )
 
 
@@ -511,7 +511,7 @@ def test_box_ls_baseline_file_scores_the_papers_numbers(paper_data_dir: Path, tm
 
     from click.testing import CliRunner
 
-    from odmd_bench.cli import cli
+    from odmd_bench.cli.main import cli
 
     out = tmp_path / "box_ls.csv"
     data = ["--benchmark", "odmd-paper", "--data-dir", str(paper_data_dir)]

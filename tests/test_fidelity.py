@@ -14,7 +14,7 @@ import pytest
 
 import odmd_bench
 from odmd_bench import Examples, generate
-from odmd_bench.config import PRESETS
+from odmd_bench.data.config import PRESETS
 
 ALPHA = 1e-3
 

@@ -7,8 +7,8 @@ import pytest
 
 import odmd_bench
 from odmd_bench import generate
-from odmd_bench.config import PRESETS, GeneratorConfig
-from odmd_bench.io import content_sha256, set_arrays
+from odmd_bench.data.config import PRESETS, GeneratorConfig
+from odmd_bench.data.io import content_sha256, set_arrays
 
 
 @pytest.mark.parametrize("preset", ["odmd", "odms"])

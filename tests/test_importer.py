@@ -10,7 +10,7 @@ import pytest
 
 import odmd_bench
 from odmd_bench import ImportRefused
-from odmd_bench.importer import import_release, read_original, safe_unpickle
+from odmd_bench.data.importer import import_release, read_original, safe_unpickle
 
 SETS = {"normal": "normal", "perturb_motion": "camera", "perturb_detection": "object", "robot": "robot"}
 

@@ -16,7 +16,7 @@ import yaml
 from click.testing import CliRunner
 
 from odmd_bench import leaderboard as lb
-from odmd_bench.cli import cli
+from odmd_bench.cli.main import cli
 from odmd_bench.errors import UsageError, ValidationError
 
 REPO = Path(__file__).resolve().parents[1]
@@ -31,9 +31,9 @@ def _predictions(data_dir: Path, tmp: Path, method: str) -> Path:
     import importlib
 
     from odmd_bench import load_split
-    from odmd_bench.predictions import write_predictions
+    from odmd_bench.evaluation.predictions import write_predictions
 
-    module = importlib.import_module(f"baselines.{method}")
+    module = importlib.import_module(f"odmd_bench_baselines.{method}")
     sets = load_split("test", "odmd-v1", data_dir)
     path = tmp / f"{method}.csv"
     write_predictions(path, "test", {s: module.predict(ex) for s, ex in sets.items()}, benchmark="odmd-v1")
@@ -266,7 +266,7 @@ def test_plain_csv_predictions_are_read_too(board: Path, v1_data_dir: Path) -> N
 
 
 def test_rescoring_matches_the_evaluator(board: Path, v1_data_dir: Path, v1_preds: dict[str, Path]) -> None:
-    from odmd_bench.evaluate import evaluate
+    from odmd_bench.evaluation.scoring import evaluate
 
     direct = evaluate(v1_preds["box_ls"], benchmark="odmd-v1", data_dir=v1_data_dir)
     row = json.loads((board / lb.JSON_FILE).read_text())["boards"][0]["rows"][0]

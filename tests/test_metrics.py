@@ -8,8 +8,9 @@ import math
 import numpy as np
 import pytest
 
-from odmd_bench import UsageError, metrics
-from odmd_bench.metrics import (
+from odmd_bench import UsageError
+from odmd_bench.evaluation import metrics
+from odmd_bench.evaluation.metrics import (
     STATS,
     absolute_error,
     all_sets_mean,

@@ -3,8 +3,8 @@ from __future__ import annotations
 import numpy as np
 
 import odmd_bench
-from odmd_bench.evaluate import Predictions, score
-from odmd_bench.report import format_table
+from odmd_bench.evaluation.report import format_table
+from odmd_bench.evaluation.scoring import Predictions, score
 
 
 def test_table_columns_never_run_together_for_huge_errors() -> None:

@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from odmd_bench_baselines import robust
+from odmd_bench_baselines.robust import DEFAULT_PARAMS, NoiseModel, RobustParams
 
 import odmd_bench
-from baselines import robust
-from baselines.robust import DEFAULT_PARAMS, NoiseModel, RobustParams
 from odmd_bench import CameraConfig, DataError, Examples, GeneratorConfig, UsageError
 
 
@@ -230,7 +230,7 @@ RESULTS = Path(robust.__file__).with_name("robust_search_results.csv")
 
 
 def test_defaults_are_the_best_row_of_the_val_search() -> None:
-    from baselines.robust_search import Trial, describe
+    from odmd_bench_baselines.robust_search import Trial, describe
 
     with RESULTS.open(newline="") as fh:
         best = next(csv.DictReader(fh))

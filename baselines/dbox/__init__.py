@@ -19,11 +19,11 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from odmd_bench.data.examples import Examples
 from odmd_bench.errors import DataError
-from odmd_bench.examples import Examples
 
 if TYPE_CHECKING:
-    from baselines.dbox.model import DBox
+    from odmd_bench_baselines.dbox.model import DBox
 
 WEIGHTS_DIR = Path(__file__).resolve().parent / "weights"
 #: The shipped weights by training configuration.
@@ -47,8 +47,7 @@ def load_model(weights: str | os.PathLike[str] | None = None) -> tuple[DBox, str
             shapes are not the original layout (every difference is named).
     """
     import torch
-
-    from baselines.dbox.model import DBox
+    from odmd_bench_baselines.dbox.model import DBox
 
     path = Path(weights) if weights is not None else DEFAULT_WEIGHTS
     if not path.is_file():
@@ -70,8 +69,7 @@ def load_model(weights: str | os.PathLike[str] | None = None) -> tuple[DBox, str
 def check_state_dict(state: Any, where: str = "checkpoint") -> None:
     """Raise :class:`DataError` naming every key or shape that is not the original layout."""
     import torch
-
-    from baselines.dbox.model import checkpoint_shapes
+    from odmd_bench_baselines.dbox.model import checkpoint_shapes
 
     if not isinstance(state, dict):
         raise DataError(
@@ -136,8 +134,7 @@ def predict(
         (N,) float64 depth in metres.
     """
     import torch
-
-    from baselines.dbox.model import N_OBS, predict_depth
+    from odmd_bench_baselines.dbox.model import N_OBS, predict_depth
 
     if examples.n_obs != N_OBS:
         raise DataError(f"DBox takes {N_OBS} observations per example, got {examples.n_obs}")

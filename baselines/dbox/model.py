@@ -39,8 +39,8 @@ import numpy as np
 import torch
 from torch import nn
 
+from odmd_bench.data.examples import Examples, fill_missing
 from odmd_bench.errors import DataError
-from odmd_bench.examples import Examples, fill_missing
 
 #: Numbers per observation: x, y, w, h, dcx, dcy, dcz.
 N_FEATURES = 7

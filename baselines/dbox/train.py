@@ -40,12 +40,12 @@ from typing import Any, TextIO
 
 import numpy as np
 import torch
+from odmd_bench_baselines.dbox.model import DBox, make_inputs, predict_depth
 
 import odmd_bench
-from baselines.dbox.model import DBox, make_inputs, predict_depth
+from odmd_bench.data.examples import Examples
+from odmd_bench.data.io import atomic_path, atomic_write, file_sha256
 from odmd_bench.errors import DataError, UsageError
-from odmd_bench.examples import Examples
-from odmd_bench.io import atomic_path, atomic_write, file_sha256
 
 BATCH_SIZE = 512
 LEARNING_RATE = 1e-3
@@ -301,7 +301,7 @@ def train(
     }
     model = DBox(generator=torch.Generator().manual_seed(seed)).to(dev)
     if init is not None:
-        from baselines.dbox import load_model
+        from odmd_bench_baselines.dbox import load_model
 
         start, _ = load_model(init)
         model.load_state_dict(start.state_dict())

@@ -13,12 +13,12 @@ from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
 
-from odmd_bench.benchmarks import check_set, check_split, get_benchmark, set_file
+from odmd_bench.data.examples import Examples
+from odmd_bench.data.generator import GENERATOR_VERSION, generate
+from odmd_bench.data.io import content_sha256, read_set, set_arrays, write_sets
+from odmd_bench.data.manifests import read_manifest, splits_dir
+from odmd_bench.data.registry import check_set, check_split, get_benchmark, set_file
 from odmd_bench.errors import DataError
-from odmd_bench.examples import Examples
-from odmd_bench.generate import GENERATOR_VERSION, generate
-from odmd_bench.io import content_sha256, read_set, set_arrays, write_sets
-from odmd_bench.manifests import read_manifest, splits_dir
 
 log = logging.getLogger("odmd_bench")
 

@@ -23,12 +23,12 @@ from typing import Any
 
 import numpy as np
 
-from odmd_bench.benchmarks import get_benchmark, set_file
-from odmd_bench.config import HSR_GRASP_CAMERA
+from odmd_bench.data.config import HSR_GRASP_CAMERA
+from odmd_bench.data.examples import Examples
+from odmd_bench.data.io import read_set, write_sets
+from odmd_bench.data.manifests import known_originals
+from odmd_bench.data.registry import get_benchmark, set_file
 from odmd_bench.errors import DataError, ImportRefused
-from odmd_bench.examples import Examples
-from odmd_bench.io import read_set, write_sets
-from odmd_bench.manifests import known_originals
 
 log = logging.getLogger("odmd_bench")
 

@@ -25,8 +25,8 @@ from collections.abc import Iterator
 
 import numpy as np
 
-from odmd_bench.config import GeneratorConfig, check_perturbation, get_preset
-from odmd_bench.examples import Examples
+from odmd_bench.data.config import GeneratorConfig, check_perturbation, get_preset
+from odmd_bench.data.examples import Examples
 
 GENERATOR_VERSION = 1
 

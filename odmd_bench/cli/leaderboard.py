@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from odmd_bench.benchmarks import BENCHMARKS, DATA_DIR_ENV, SPLITS
+from odmd_bench.data.registry import BENCHMARKS, DATA_DIR_ENV, SPLITS
 from odmd_bench.errors import ValidationError
 
 _root_option = click.option(

@@ -1,5 +1,5 @@
 """Writing the predictions format (CONTRACT section 4). Reading and validating it is
-:mod:`odmd_bench.evaluate`'s job."""
+:mod:`odmd_bench.evaluation.scoring`'s job."""
 
 from __future__ import annotations
 
@@ -9,9 +9,9 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from odmd_bench.benchmarks import check_split
+from odmd_bench.data.io import atomic_write
+from odmd_bench.data.registry import check_split
 from odmd_bench.errors import UsageError
-from odmd_bench.io import atomic_write
 
 COLUMNS = ("split", "set", "index", "depth")
 

@@ -1,6 +1,6 @@
 """Formatting evaluation and comparison results for people and scripts.
 
-Scoring returns data (:mod:`odmd_bench.evaluate`, :mod:`odmd_bench.compare`); this
+Scoring returns data (:mod:`odmd_bench.evaluation.scoring`, :mod:`odmd_bench.evaluation.compare`); this
 module only turns it into text: ``table`` (the layout of the paper's detailed tables:
 one row per set with mean, median, min, max and std of percent error and of absolute
 error, then ``All``), ``json`` (CONTRACT section 5), ``csv`` and ``markdown``. It also
@@ -18,12 +18,12 @@ from typing import Any
 
 import numpy as np
 
-from odmd_bench.compare import Comparison, PairedDifference
+from odmd_bench.data.examples import fill_missing
+from odmd_bench.data.io import atomic_write
 from odmd_bench.errors import UsageError
-from odmd_bench.evaluate import EvaluationResult
-from odmd_bench.examples import fill_missing
-from odmd_bench.io import atomic_write
-from odmd_bench.metrics import STATS
+from odmd_bench.evaluation.compare import Comparison, PairedDifference
+from odmd_bench.evaluation.metrics import STATS
+from odmd_bench.evaluation.scoring import EvaluationResult
 
 FORMATS: tuple[str, ...] = ("table", "json", "csv", "markdown")
 

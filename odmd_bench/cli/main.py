@@ -53,7 +53,7 @@ def cli() -> None:
 
 
 def _register() -> None:
-    from odmd_bench.commands import baseline, data, dbox, evaluate, leaderboard
+    from odmd_bench.cli import baseline, data, dbox, evaluate, leaderboard
 
     for module in (data, baseline, evaluate, leaderboard, dbox):
         for command in module.COMMANDS:

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import click
 
-from odmd_bench.commands.data import data_dir_option
+from odmd_bench.cli.data import data_dir_option
 
 
 @click.command(name="train-dbox")
@@ -90,8 +90,7 @@ def train_dbox(
     is written to OUT/dbox_CONFIG.pt (original key layout) with a JSON record beside it.
     """
     import torch
-
-    from baselines.dbox.train import train
+    from odmd_bench_baselines.dbox.train import train
 
     if threads:
         torch.set_num_threads(threads)

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import click
 
-from odmd_bench.benchmarks import BENCHMARKS, DATA_DIR_ENV, SPLITS, resolve_data_dir
+from odmd_bench.data.registry import BENCHMARKS, DATA_DIR_ENV, SPLITS, resolve_data_dir
 
 data_dir_option = click.option(
     "--data-dir",
@@ -37,7 +37,7 @@ data_dir_option = click.option(
 @click.option("--force", is_flag=True, help="Regenerate even files that are already right.")
 def generate(benchmark: str, split: str | None, data_dir: Path | None, force: bool) -> None:
     """Write the val and test files of a generated benchmark, verified against splits/."""
-    from odmd_bench.data import ensure_generated
+    from odmd_bench.data.store import ensure_generated
 
     splits = [split] if split else list(SPLITS)
     result = ensure_generated(
@@ -65,8 +65,8 @@ def generate(benchmark: str, split: str | None, data_dir: Path | None, force: bo
 )
 def import_(source: Path, benchmark: str | None, data_dir: Path | None, allow_unknown: bool) -> None:
     """Convert original ODMD / ODMS-detection .pk files (a file or a folder) into HDF5."""
-    from odmd_bench.benchmarks import set_file
-    from odmd_bench.importer import import_release
+    from odmd_bench.data.importer import import_release
+    from odmd_bench.data.registry import set_file
 
     written = import_release(source, data_dir, benchmark=benchmark, allow_unknown=allow_unknown)
     for (bench, split), sets in written.items():
@@ -78,7 +78,7 @@ def import_(source: Path, benchmark: str | None, data_dir: Path | None, allow_un
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
 def info(file: Path, as_json: bool) -> None:
     """Show what an odmd-bench HDF5 file holds."""
-    from odmd_bench.io import file_summary
+    from odmd_bench.data.io import file_summary
 
     summary = file_summary(file)
     if as_json:

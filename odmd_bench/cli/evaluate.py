@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from odmd_bench.report import FORMATS
+from odmd_bench.evaluation.report import FORMATS
 
 _BENCHMARK_HELP = "Benchmark the file is for [default: the file's benchmark column, else odmd-v1]."
 _DATA_HELP = "Data folder [default: $ODMD_BENCH_DATA, else ~/.local/share/odmd-bench]."
@@ -51,8 +51,8 @@ def evaluate_command(
     every problem named (exit status 2). Zero or negative depths are scored as given,
     with a warning.
     """
-    from odmd_bench.evaluate import evaluate
-    from odmd_bench.report import format_result, write_per_example
+    from odmd_bench.evaluation.report import format_result, write_per_example
+    from odmd_bench.evaluation.scoring import evaluate
 
     result = evaluate(preds, benchmark=benchmark, data_dir=data_dir, sets=_sets(sets))
     _warn(result.warnings)
@@ -93,8 +93,8 @@ def compare_command(
     bootstrap 95% interval, a paired sign-flip test, and a verdict (A better, B better,
     not distinguishable). Both files are validated as by `evaluate`.
     """
-    from odmd_bench.compare import compare_files
-    from odmd_bench.report import format_comparison
+    from odmd_bench.evaluation.compare import compare_files
+    from odmd_bench.evaluation.report import format_comparison
 
     c, ra, rb = compare_files(
         a, b, benchmark=benchmark, data_dir=data_dir, sets=_sets(sets), n_resamples=resamples, seed=seed

@@ -18,7 +18,7 @@ sets it was made for once per benchmark and split, checks that their content SHA
 is the one the entry records, validates and scores its predictions with the
 evaluator's :func:`~odmd_bench.evaluate.read_predictions` and
 :func:`~odmd_bench.evaluate.score`, and forms rank groups (:func:`rank_groups`) with
-the evaluator's paired comparison :func:`~odmd_bench.compare.compare_errors`.
+the evaluator's paired comparison :func:`~odmd_bench.evaluation.compare.compare_errors`.
 :func:`check` does the same and compares the result with the committed files,
 naming each file, row and field that differs. Nothing here prints.
 
@@ -50,11 +50,11 @@ from typing import Any
 
 import numpy as np
 
-from odmd_bench.benchmarks import BENCHMARKS, SPLITS, get_benchmark, set_file
-from odmd_bench.compare import TIE, PairedDifference, compare_errors
+from odmd_bench.data.examples import Examples
+from odmd_bench.data.io import atomic_write
+from odmd_bench.data.registry import BENCHMARKS, SPLITS, get_benchmark, set_file
 from odmd_bench.errors import DataError, OdmdError, UsageError, ValidationError
-from odmd_bench.examples import Examples
-from odmd_bench.io import atomic_write
+from odmd_bench.evaluation.compare import TIE, PairedDifference, compare_errors
 
 #: Metadata files an entry folder may hold (exactly one of them).
 ENTRY_FILES: tuple[str, ...] = ("entry.yaml", "entry.json")
@@ -399,11 +399,11 @@ def load_board_data(
     """The sets of a board. A generated benchmark is generated when missing; an imported
     one is imported from ``original`` (the original release's folder) when missing and
     ``original`` is given."""
-    from odmd_bench.data import load_split
+    from odmd_bench.data.store import load_split
 
     b = get_benchmark(benchmark)
     if not b.generated and original is not None and not set_file(benchmark, split, data_dir).exists():
-        from odmd_bench.importer import import_release
+        from odmd_bench.data.importer import import_release
 
         import_release(original, data_dir, benchmark=benchmark)
     try:
@@ -426,7 +426,7 @@ def score_entry(entry: Entry, examples: Mapping[str, Examples]) -> Any:
         When the sets' content hashes differ from the entry's, the predictions are for
         another benchmark or split, or the file fails the evaluator's validation.
     """
-    from odmd_bench.evaluate import read_predictions, score
+    from odmd_bench.evaluation.scoring import read_predictions, score
 
     problems = []
     recorded = entry.meta["sets_content_sha256"]
@@ -504,7 +504,7 @@ def rank_groups(
     ----------
     errors : ``{method: {set: (N_set,) per-example percent errors}}``, the same sets
         and examples for every method.
-    n_resamples, seed, confidence : passed to :func:`odmd_bench.compare.compare_errors`
+    n_resamples, seed, confidence : passed to :func:`odmd_bench.evaluation.compare.compare_errors`
 
     Returns
     -------
@@ -729,7 +729,7 @@ def _rule(n_resamples: int | None) -> str:
     n_resamples = RANK_RESAMPLES if n_resamples is None else n_resamples
     return (
         "Rows sorted by All (ties by method id). The first row leads group 1; each next row is "
-        "compared with the current group's leader by odmd_bench.compare.compare_errors on per-example "
+        "compared with the current group's leader by odmd_bench.evaluation.compare.compare_errors on per-example "
         f"percent errors ({n_resamples} paired bootstrap resamples and sign flips, seed {RANK_SEED}, "
         f"confidence {RANK_CONFIDENCE}, stratified by set for All); it joins the group if the verdict "
         "on All is 'not distinguishable', otherwise it leads the next group."
@@ -1007,7 +1007,7 @@ def plot_boards(boards: Sequence[Board], path: str | os.PathLike[str], *, top: i
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    from odmd_bench.io import atomic_path
+    from odmd_bench.data.io import atomic_path
 
     n = max(1, len(boards))
     fig = Figure(figsize=(14, 4.6 * n), layout="constrained")

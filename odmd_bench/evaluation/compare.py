@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 
 from odmd_bench.errors import UsageError, ValidationError
-from odmd_bench.evaluate import EvaluationResult, evaluate
+from odmd_bench.evaluation.scoring import EvaluationResult, evaluate
 
 A_BETTER = "A better"
 B_BETTER = "B better"

@@ -15,7 +15,7 @@ from typing import Any
 import click
 import numpy as np
 
-from odmd_bench.benchmarks import BENCHMARKS, DATA_DIR_ENV, DEFAULT_BENCHMARK, SPLITS
+from odmd_bench.data.registry import BENCHMARKS, DATA_DIR_ENV, DEFAULT_BENCHMARK, SPLITS
 from odmd_bench.errors import UsageError
 
 #: Command-line name -> (module under ``baselines``, what it needs beyond numpy).
@@ -29,7 +29,7 @@ BASELINES: dict[str, tuple[str, str]] = {
 
 
 def _import_method(name: str) -> ModuleType:
-    module_name = f"baselines.{BASELINES[name][0]}"
+    module_name = f"odmd_bench_baselines.{BASELINES[name][0]}"
     try:
         module = importlib.import_module(module_name)
     except ModuleNotFoundError as e:
@@ -117,7 +117,7 @@ def baseline(
     dbox (the paper's network; needs torch) and robust.
     """
     from odmd_bench import load_split
-    from odmd_bench.predictions import write_predictions
+    from odmd_bench.evaluation.predictions import write_predictions
 
     if weights is not None and name != "dbox":
         raise UsageError(f"--weights applies to dbox only, not to {name!r}")

@@ -20,8 +20,8 @@ from typing import IO, Any
 
 import numpy as np
 
+from odmd_bench.data.examples import Examples
 from odmd_bench.errors import DataError
-from odmd_bench.examples import Examples
 
 #: Version of the file layout written here (an attribute of every file).
 FORMAT_VERSION = 1

@@ -5,7 +5,7 @@ problem in one pass (:class:`~odmd_bench.errors.ValidationError`, one line per k
 of problem with its count and the first few offending lines); :func:`score` turns
 valid predictions and the sets they refer to into an :class:`EvaluationResult`;
 :func:`evaluate` does both, loading the sets through :func:`odmd_bench.load_split`,
-which verifies their content hashes. Formatting is :mod:`odmd_bench.report`'s job.
+which verifies their content hashes. Formatting is :mod:`odmd_bench.evaluation.report`'s job.
 
 The file is read once, as bytes, and never modified; its SHA-256 goes into the
 result's provenance. A UTF-8 byte-order mark (or UTF-16 with one), Windows or old Mac
@@ -29,10 +29,10 @@ from typing import Any
 
 import numpy as np
 
-from odmd_bench.benchmarks import BENCHMARKS, DEFAULT_BENCHMARK, SPLITS, Benchmark, get_benchmark
+from odmd_bench.data.examples import Examples
+from odmd_bench.data.registry import BENCHMARKS, DEFAULT_BENCHMARK, SPLITS, Benchmark, get_benchmark
 from odmd_bench.errors import UsageError, ValidationError
-from odmd_bench.examples import Examples
-from odmd_bench.metrics import all_sets_mean, percent_error, set_metrics
+from odmd_bench.evaluation.metrics import all_sets_mean, percent_error, set_metrics
 
 #: Columns every predictions file must have.
 REQUIRED_COLUMNS: tuple[str, ...] = ("split", "set", "index", "depth")
@@ -600,7 +600,7 @@ def evaluate(
     >>> round(result.all_percent_error_mean, 2)  # doctest: +SKIP
     11.83
     """
-    from odmd_bench.data import load_split
+    from odmd_bench.data.store import load_split
 
     loaded: dict[str, Examples] = {}
 

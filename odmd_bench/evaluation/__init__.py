@@ -1,0 +1,1 @@
+"""Evaluation: metrics, predictions files, scoring, reports and paired comparisons."""
