@@ -31,6 +31,7 @@ from __future__ import annotations
 import argparse
 import csv
 import itertools
+import os
 import sys
 import time
 from collections.abc import Iterator, Mapping, Sequence
@@ -40,8 +41,7 @@ from pathlib import Path
 import numpy as np
 from odmd_bench_baselines.robust import DEFAULT_PARAMS, NoiseModel, RobustParams, predict
 
-from odmd_bench import Examples, load_split
-from odmd_bench.data.io import atomic_write
+from odmd_bench import Examples, all_sets_mean, load_split, percent_error
 
 SPLIT = "val"  # never "test": hyperparameters are chosen on val only
 DEFAULT_OUT = Path(__file__).with_name("robust_search_results.csv")
@@ -54,10 +54,6 @@ class Trial:
     stage: str
     params: RobustParams
     missing: str = "omit"
-
-
-def _mean_percent_error(depth: np.ndarray, truth: np.ndarray) -> float:
-    return float(np.mean(np.abs(depth - truth) / truth * 100.0))
 
 
 def stage_one(quick: bool = False) -> Iterator[Trial]:
@@ -100,9 +96,9 @@ def run_trial(trial: Trial, data: Mapping[str, Mapping[str, Examples]]) -> dict[
         per_set = {}
         for name, ex in sets.items():
             depth = predict(ex, trial.params, missing=trial.missing)  # type: ignore[arg-type]
-            per_set[name] = _mean_percent_error(depth, ex.depth)
+            per_set[name] = float(percent_error(ex.depth, depth).mean())
             scores[f"{bench}/{name}"] = per_set[name]
-        alls.append(float(np.mean(list(per_set.values()))))
+        alls.append(all_sets_mean(per_set))
     scores["all"] = float(np.mean(alls))
     return scores
 
@@ -145,10 +141,12 @@ def search(
         record(trial)
     rows.sort(key=lambda r: r[0])
     table = [r[1] for r in rows]
-    with atomic_write(out, "w") as fh:
+    tmp = out.with_name(out.name + ".tmp")  # written whole, then renamed: never half a table
+    with open(tmp, "w", newline="") as fh:
         writer = csv.DictWriter(fh, fieldnames=list(table[0]))
         writer.writeheader()
         writer.writerows(table)
+    os.replace(tmp, out)
     return table
 
 

@@ -2,6 +2,10 @@
 
 Run: pytest benchmarks/bench_evaluate.py --benchmark-only -p no:randomly -s
 
+Two measurements. ``test_evaluate_cli_against_imports``: the command as users run it.
+``test_pipeline_in_process``: the evaluation stages alone on the same file, in this
+process, the sets already loaded (parse, coverage, score): what the reader costs.
+
 The issue's target: evaluating a full ``odmd-v1`` test file (4 sets x 3,000 = 12,000
 rows, in a fresh process, as a user runs it) takes at most 0.4 s more than a fresh
 process that only imports the evaluator's dependencies (``pandas, h5py, click,
@@ -43,6 +47,25 @@ def test_file(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     )
     assert sum(len(ex) for ex in sets.values()) == 12_000
     return data, preds
+
+
+def test_pipeline_in_process(benchmark, test_file: tuple[Path, Path]) -> None:  # type: ignore[no-untyped-def]
+    from odmd_bench.evaluation.coverage import check_coverage
+    from odmd_bench.evaluation.parse import parse_predictions
+    from odmd_bench.evaluation.scoring import score
+
+    data, preds = test_file
+    sets = odmd_bench.load_split("test", "odmd-v1", data)
+    sizes = {s: len(ex) for s, ex in sets.items()}
+
+    def run() -> float:
+        return score(check_coverage(parse_predictions(preds), sizes), sets).all_percent_error_mean
+
+    all_mean = benchmark.pedantic(run, rounds=15, iterations=1, warmup_rounds=1)
+    assert 0 < all_mean < 10
+    print(
+        f"\nparse + coverage + score of 12,000 rows in process: {benchmark.stats.stats.median * 1e3:.1f} ms"
+    )
 
 
 def _time(cmd: list[str], env: dict[str, str]) -> float:

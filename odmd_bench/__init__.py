@@ -11,6 +11,7 @@ Importing the package loads numpy and h5py only; torch is needed by DBox alone.
 from odmd_bench.data.config import PRESETS, CameraConfig, GeneratorConfig
 from odmd_bench.data.examples import Examples, fill_missing, nearest_detected_index
 from odmd_bench.data.generator import GENERATOR_VERSION, generate, stream
+from odmd_bench.data.pixels import predict_sequences, read_sequences
 from odmd_bench.data.store import ensure_generated, load, load_split
 from odmd_bench.errors import (
     ConfigError,
@@ -20,6 +21,12 @@ from odmd_bench.errors import (
     UsageError,
     ValidationError,
 )
+from odmd_bench.evaluation.arrays import score_depths as score
+from odmd_bench.evaluation.metrics import absolute_error, all_sets_mean, percent_error
+from odmd_bench.evaluation.parse import ParsedPredictions, parse_predictions
+from odmd_bench.evaluation.predictions import write_predictions
+from odmd_bench.evaluation.result import EvaluationResult
+from odmd_bench.evaluation.scoring import evaluate
 
 __version__ = "0.1.0"
 
@@ -29,18 +36,29 @@ __all__ = [
     "CameraConfig",
     "ConfigError",
     "DataError",
+    "EvaluationResult",
     "Examples",
     "GeneratorConfig",
     "ImportRefused",
     "OdmdError",
+    "ParsedPredictions",
     "UsageError",
     "ValidationError",
     "__version__",
+    "absolute_error",
+    "all_sets_mean",
     "ensure_generated",
+    "evaluate",
     "fill_missing",
     "generate",
     "load",
     "load_split",
     "nearest_detected_index",
+    "parse_predictions",
+    "percent_error",
+    "predict_sequences",
+    "read_sequences",
+    "score",
     "stream",
+    "write_predictions",
 ]

@@ -12,6 +12,9 @@ trap 'rm -rf "$stubs"' EXIT
 ln -s "$PWD/baselines" "$stubs/odmd_bench_baselines"
 MYPYPATH="$stubs" mypy
 pytest
+# The wheel as users install it: contents, and the commands run from it outside the repository,
+# with and without torch (scripts/check_wheel.sh says what it checks).
+bash scripts/check_wheel.sh
 # Re-score every leaderboard entry from its committed predictions; fails on any difference.
 # The odmd-paper entries need the original release; in CI (CI=true) it must be there.
 original="${ODMD_ORIGINAL:-../shared/odmd-original}"

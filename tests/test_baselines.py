@@ -23,7 +23,7 @@ INTRINSICS = {"fx": 205.5, "fy": 205.5, "cx": 320.5, "cy": 240.5, "image_width":
 
 
 def percent_error(examples: odmd_bench.Examples, depth: np.ndarray) -> np.ndarray:
-    return np.abs(examples.depth - depth) / examples.depth * 100
+    return odmd_bench.percent_error(examples.depth, depth)
 
 
 def make_examples(
@@ -346,7 +346,7 @@ def test_paper_parallax_robot_against_the_overwritten_depth(paper_data_dir: Path
     overwritten[last_missing] = robot.observation_depth[last_missing, 0]
 
     def score(depth: np.ndarray, truth: np.ndarray) -> float:
-        return float((np.abs(truth - depth) / truth * 100).mean())
+        return float(odmd_bench.percent_error(truth, depth).mean())
 
     par, exp = parallax.predict(robot), expansion.predict(robot)
     assert round(score(par, robot.depth), 2) == 65.55

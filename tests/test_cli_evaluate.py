@@ -213,7 +213,7 @@ def test_compare_bad_file_exits_2(data: Path, tmp_path: Path) -> None:
     assert code == 2 and out == "" and "B (" in err and "missing column" in err
 
 
-def test_evaluate_never_imports_torch(data: Path, tmp_path: Path) -> None:
+def test_evaluate_never_imports_torch_or_pandas(data: Path, tmp_path: Path) -> None:
     p = preds(tmp_path)
     script = (
         "import sys\n"
@@ -223,7 +223,7 @@ def test_evaluate_never_imports_torch(data: Path, tmp_path: Path) -> None:
         "assert r.exit_code == 0, r.output\n"
         f"r = CliRunner().invoke(cli, ['compare', {str(p)!r}, {str(p)!r}, '--benchmark', 'odmd-paper'])\n"
         "assert r.exit_code == 0, r.output\n"
-        "print(sorted(m for m in sys.modules if m.split('.')[0] in ('torch', 'scipy', 'matplotlib')))\n"
+        "print(sorted(m for m in sys.modules if m.split('.')[0] in ('torch', 'scipy', 'matplotlib', 'pandas')))\n"
     )
     done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, check=False)
     assert done.returncode == 0, done.stderr
@@ -256,3 +256,148 @@ def test_missing_generated_benchmark_is_generated_first(tmp_path: Path) -> None:
     assert "generating odmd-v1 val first" in done.stderr
     assert json.loads(done.stdout)["benchmark"] == "odmd-v1"
     assert (tmp_path / "fresh" / "odmd-v1" / "val.h5").exists()
+
+
+# --- stdin, gzip, -o, refusing to overwrite the input, CI gates ------------------------
+
+
+def invoke(args: list[str], stdin: bytes | None = None) -> tuple[int, str, str]:
+    r = CliRunner().invoke(cli, args, input=stdin)
+    return r.exit_code, r.stdout, r.stderr
+
+
+def test_stdin_and_gzip_score_like_the_file(data: Path, tmp_path: Path) -> None:
+    import gzip
+
+    p = preds(tmp_path)
+    base = ["--benchmark", "odmd-paper", "--format", "json"]
+    plain = json.loads(run("evaluate", str(p), *base)[1])
+    packed = tmp_path / "p.csv.gz"
+    packed.write_bytes(gzip.compress(p.read_bytes()))
+    for args, stdin in (
+        (["evaluate", str(packed), *base], None),
+        (["evaluate", "-", *base], p.read_bytes()),
+        (["evaluate", "-", *base], packed.read_bytes()),
+    ):
+        code, out, err = invoke(args, stdin)
+        assert code == 0, err
+        got = json.loads(out)
+        assert got["sets"] == plain["sets"] and got["all"] == plain["all"]
+        assert got["provenance"]["predictions_sha256"] == plain["provenance"]["predictions_sha256"]
+    assert json.loads(invoke(["evaluate", "-", *base], p.read_bytes())[1])["provenance"][
+        "predictions_file"
+    ] == ("<stdin>")
+    code, out, _ = invoke(["compare", "-", str(packed), "--benchmark", "odmd-paper"], p.read_bytes())
+    assert code == 0 and "A = <stdin>, B = p.csv.gz" in out
+    code, _, err = invoke(["compare", "-", "-", "--benchmark", "odmd-paper"], b"")
+    assert code == 2 and "both be read from stdin" in err
+
+
+def test_output_file_and_dash(data: Path, tmp_path: Path) -> None:
+    p = preds(tmp_path)
+    report = tmp_path / "out" / "report.json"
+    code, out, err = run(
+        "evaluate", str(p), "--benchmark", "odmd-paper", "--format", "json", "-o", str(report)
+    )
+    assert code == 0 and out == "" and f"wrote the report to {report}" in err
+    assert (
+        json.loads(report.read_text())["all"]["percent_error_mean"]
+        == evaluate(p, benchmark="odmd-paper").all_percent_error_mean
+    )
+    code, out, _ = run("evaluate", str(p), "--benchmark", "odmd-paper", "--format", "json", "-o", "-")
+    assert code == 0 and json.loads(out) == json.loads(report.read_text())
+    assert not Path("-").exists()
+    code, out, _ = run(
+        "evaluate", str(p), "--benchmark", "odmd-paper", "--per-example", "-", "-o", str(tmp_path / "r.txt")
+    )
+    assert code == 0 and out.splitlines()[0] == ",".join(PER_EXAMPLE_COLUMNS)
+    assert len(out.splitlines()) == 1 + sum(N.values())
+    code, _, err = run("evaluate", str(p), "--benchmark", "odmd-paper", "--per-example", "-")
+    assert code == 2 and "cannot both write to stdout" in err
+    cmp_out = tmp_path / "cmp.csv"
+    code, out, _ = run(
+        "compare", str(p), str(p), "--benchmark", "odmd-paper", "--format", "csv", "-o", str(cmp_out)
+    )
+    assert code == 0 and out == "" and cmp_out.read_text().startswith("benchmark,split,set,n,")
+
+
+def test_outputs_never_replace_the_scored_file(data: Path, tmp_path: Path) -> None:
+    p = preds(tmp_path)
+    before = p.read_bytes()
+    sym = tmp_path / "sym.csv"
+    sym.symlink_to(p)
+    hard = tmp_path / "hard.csv"
+    os.link(p, hard)
+    for args in (
+        ["evaluate", str(p), "--per-example", str(p)],
+        ["evaluate", str(p), "--per-example", str(sym)],
+        ["evaluate", str(hard), "--per-example", str(p)],
+        ["evaluate", str(p), "-o", str(tmp_path / "." / "p.csv")],
+        ["evaluate", str(sym), "-o", str(hard)],
+        ["compare", str(p), str(preds(tmp_path, "b.csv")), "-o", str(hard)],
+    ):
+        code, out, err = run(*args, "--benchmark", "odmd-paper")
+        assert code == 2 and out == "", args
+        assert "being scored" in err and "Traceback" not in err
+        assert p.read_bytes() == before
+    code, _, err = run(
+        "evaluate",
+        str(p),
+        "--benchmark",
+        "odmd-paper",
+        "-o",
+        str(tmp_path / "x"),
+        "--per-example",
+        str(tmp_path / "x"),
+    )
+    assert code == 2 and "name the same file" in err
+
+
+def test_max_all_gate(data: Path, tmp_path: Path) -> None:
+    p = preds(tmp_path, scale=0.1)
+    all_mean = evaluate(p, benchmark="odmd-paper").all_percent_error_mean
+    code, out, err = run("evaluate", str(p), "--benchmark", "odmd-paper", "--max-all", f"{all_mean + 0.01}")
+    assert code == 0 and "All" in out and err.startswith("ok: All")
+    code, out, err = run("evaluate", str(p), "--benchmark", "odmd-paper", "--max-all", f"{all_mean - 0.01}")
+    assert code == 1 and "All" in out  # the report is still printed
+    assert f"fail: All {all_mean:.2f} is above --max-all {all_mean - 0.01:g}" in err
+    for bad in ("nan", "-1"):
+        code, out, err = run("evaluate", str(p), "--benchmark", "odmd-paper", "--max-all", bad)
+        assert code == 2 and out == "" and "--max-all must be a finite number" in err
+
+
+def test_compare_fail_if_worse(data: Path, tmp_path: Path) -> None:
+    truth = {s: ex.depth for s, ex in odmd_bench.load_split("test", "odmd-paper").items()}
+    good = preds(tmp_path, "good.csv", scale=0.01, seed=1)
+    bad = tmp_path / "bad.csv"
+    write_predictions(bad, "test", {s: z * 1.5 for s, z in truth.items()})
+    base = ["--benchmark", "odmd-paper", "--fail-if-worse"]
+    code, out, err = run("compare", str(good), str(bad), *base)
+    assert code == 1 and "All" in out
+    assert err.splitlines()[0].startswith(
+        "fail: the candidate is significantly worse on All: candidate - baseline = +"
+    )
+    code, out, err = run("compare", str(bad), str(good), *base)
+    assert code == 0 and err.startswith("ok: not significantly worse on All")
+    code, _, err = run("compare", str(good), str(good), *base, "--sets", "normal,robot")
+    assert code == 0
+    assert [ln.split(":")[0] + ":" + ln.split(":")[1] for ln in err.splitlines() if ln.startswith("ok")] == [
+        "ok: not significantly worse on All",
+        "ok: not significantly worse on normal",
+        "ok: not significantly worse on robot",
+    ]
+    # without the flag, a worse candidate is reported but does not fail
+    code, _, _ = run("compare", str(good), str(bad), "--benchmark", "odmd-paper")
+    assert code == 0
+
+
+def test_huge_depths_are_refused_by_evaluate_and_compare(data: Path, tmp_path: Path) -> None:
+    good = preds(tmp_path)
+    huge = tmp_path / "huge.csv"
+    lines = good.read_text().splitlines()
+    lines[3] = lines[3].rsplit(",", 1)[0] + ",1e308"
+    huge.write_text("\n".join(lines) + "\n")
+    for args in (["evaluate", str(huge)], ["compare", str(good), str(huge)]):
+        code, out, err = run(*args, "--benchmark", "odmd-paper", "--format", "json")
+        assert code == 2 and out == ""
+        assert "depth is out of range" in err and "line 4 ('1e308')" in err

@@ -1,4 +1,4 @@
-"""Validation and scoring of predictions files (CONTRACT sections 4 and 5).
+"""Validation and scoring of predictions files (docs/format.md, "Predictions" and "Metrics").
 
 Most tests use tiny sets written into a temporary ``odmd-paper`` folder (an imported
 benchmark, so no manifest pins them); the last test scores Box_LS on the real imported

@@ -18,6 +18,7 @@ from click.testing import CliRunner
 from odmd_bench import leaderboard as lb
 from odmd_bench.cli.main import cli
 from odmd_bench.errors import UsageError, ValidationError
+from odmd_bench.leaderboard import ranking
 
 REPO = Path(__file__).resolve().parents[1]
 FAST = 200  # resamples for boards built by the tests (the committed board uses lb.RANK_RESAMPLES)
@@ -103,6 +104,12 @@ def _bump_camera_digit(path: Path, row_start: str) -> tuple[int, str, str]:
     return i, old, cells[3]
 
 
+def _rows(data: dict[str, Any]) -> list[dict[str, Any]]:
+    """The rows of the one board with entries in a leaderboard.json."""
+    (bd,) = [b for b in data["boards"] if b["rows"]]
+    return list(bd["rows"])
+
+
 def _rewrite_gz(path: Path, edit: Callable[[str], str]) -> None:
     text = gzip.decompress(path.read_bytes()).decode()
     path.write_bytes(gzip.compress(edit(text).encode()))
@@ -178,7 +185,8 @@ def _good_meta() -> dict[str, object]:
 
 def test_complete_metadata_is_read(tmp_path: Path) -> None:
     entry = lb.read_entry(_entry_folder(tmp_path, _good_meta()))
-    assert entry.key == "m/odmd-v1-test" and entry.meta["calibrated"] is True
+    assert entry.key == "m/odmd-v1-test" and entry.meta.calibrated is True
+    assert isinstance(entry.meta, lb.EntryMeta) and entry.meta.to_dict() == _good_meta()
     assert entry.predictions.name == "predictions.csv"
 
 
@@ -225,7 +233,10 @@ def test_json_metadata_and_a_missing_predictions_file(tmp_path: Path) -> None:
 def test_build_then_check_passes(board: Path, v1_data_dir: Path) -> None:
     assert _check(board, v1_data_dir) == []
     data = json.loads((board / lb.JSON_FILE).read_text())
-    (bd,) = data["boards"]
+    assert [(b["benchmark"], b["split"]) for b in data["boards"]] == [
+        (b.benchmark, b.split) for b in lb.BOARDS
+    ]
+    (bd,) = [b for b in data["boards"] if b["rows"]]
     assert bd["benchmark"] == "odmd-v1" and [r["method"] for r in bd["rows"]] == ["box-ls", "expansion"]
     assert bd["rows"][0]["group"] == 1
     md = (board / lb.MARKDOWN).read_text()
@@ -237,7 +248,7 @@ def test_identical_predictions_share_group_1_in_id_order(
 ) -> None:
     _add(board, v1_data_dir, v1_preds["box_ls"], "a-copy")
     built = lb.build(board, v1_data_dir, n_resamples=FAST)
-    rows = built.boards[0].rows
+    rows = next(b for b in built.boards if b.rows).rows
     assert [(r.entry.method, r.group) for r in rows] == [("a-copy", 1), ("box-ls", 1), ("expansion", 2)]
     assert rows[1].leader == "a-copy" and rows[1].versus_leader is not None
     assert rows[1].versus_leader.difference == 0.0
@@ -253,14 +264,14 @@ def test_plain_csv_predictions_are_read_too(board: Path, v1_data_dir: Path) -> N
     meta = yaml.safe_load((folder / "entry.yaml").read_text())
     (folder / "entry.yaml").unlink()
     (folder / "entry.json").write_text(json.dumps(meta | {"predictions": "predictions.csv"}))
-    before = json.loads((board / lb.JSON_FILE).read_text())["boards"][0]["rows"][0]
+    before = _rows(json.loads((board / lb.JSON_FILE).read_text()))[0]
     assert _check(board, v1_data_dir) == [
         "leaderboard.json: boards[odmd-v1 test].rows[box-ls].predictions_file: committed "
         "'predictions.csv.gz', build writes 'predictions.csv'",
         "leaderboard.json: boards[odmd-v1 test].rows[box-ls].metadata.predictions: committed "
         "'predictions.csv.gz', build writes 'predictions.csv'",
     ]
-    after = json.loads(lb.build(board, v1_data_dir, n_resamples=FAST).json_text)["boards"][0]["rows"][0]
+    after = _rows(json.loads(lb.build(board, v1_data_dir, n_resamples=FAST).json_text))[0]
     assert after["predictions_csv_sha256"] == before["predictions_csv_sha256"]
     assert after["sets"] == before["sets"]
 
@@ -269,7 +280,7 @@ def test_rescoring_matches_the_evaluator(board: Path, v1_data_dir: Path, v1_pred
     from odmd_bench.evaluation.scoring import evaluate
 
     direct = evaluate(v1_preds["box_ls"], benchmark="odmd-v1", data_dir=v1_data_dir)
-    row = json.loads((board / lb.JSON_FILE).read_text())["boards"][0]["rows"][0]
+    row = _rows(json.loads((board / lb.JSON_FILE).read_text()))[0]
     assert row["all"] == pytest.approx(direct.all_percent_error_mean, abs=1e-6)
     assert row["predictions_csv_sha256"] == direct.provenance["predictions_sha256"]
 
@@ -394,7 +405,7 @@ def test_build_without_matplotlib_says_so(
 def test_cli_check_exits_2_naming_the_difference(
     board: Path, v1_data_dir: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    monkeypatch.setattr(lb, "RANK_RESAMPLES", FAST)
+    monkeypatch.setattr(ranking, "RANK_RESAMPLES", FAST)
     runner = CliRunner()
     args = ["leaderboard", "check", "--root", str(board), "--data-dir", str(v1_data_dir)]
     # The fixture built with FAST resamples, and the CLI's default is patched to match.
@@ -408,13 +419,13 @@ def test_cli_check_exits_2_naming_the_difference(
 
 
 def test_cli_build_writes_the_files(board: Path, v1_data_dir: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(lb, "RANK_RESAMPLES", FAST)
+    monkeypatch.setattr(ranking, "RANK_RESAMPLES", FAST)
     (board / lb.MARKDOWN).unlink()
     result = CliRunner().invoke(
         cli, ["leaderboard", "build", "--root", str(board), "--data-dir", str(v1_data_dir), "--no-plot"]
     )
     assert result.exit_code == 0, result.output
-    assert "2 entries on 1 boards" in result.output and (board / lb.MARKDOWN).is_file()
+    assert "2 entries on 3 boards" in result.output and (board / lb.MARKDOWN).is_file()
 
 
 # ----------------------------------------------------------------------------- the committed leaderboard
@@ -423,8 +434,13 @@ def test_cli_build_writes_the_files(board: Path, v1_data_dir: Path, monkeypatch:
 @pytest.fixture(scope="module")
 def both_data_dir(paper_data_dir: Path, v1_data_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
     data = tmp_path_factory.mktemp("both-data")
-    (data / "odmd-paper").symlink_to(paper_data_dir / "odmd-paper")
-    (data / "odmd-v1").symlink_to(v1_data_dir / "odmd-v1")
+    for bench, source in (
+        ("odmd-paper", paper_data_dir),
+        ("odms-detection", paper_data_dir),
+        ("odmd-v1", v1_data_dir),
+    ):
+        if (source / bench).exists():
+            (data / bench).symlink_to(source / bench)
     return data
 
 
@@ -447,7 +463,10 @@ def test_a_copy_of_the_committed_leaderboard_with_one_changed_digit_fails(
 ) -> None:
     root = tmp_path / "leaderboard"
     shutil.copytree(REPO / "leaderboard", root)
-    (tmp_path / "baselines").symlink_to(REPO / "baselines")  # entries link their code by repository path
+    # Entries name their code by repository path, resolved inside the repository: copy it.
+    shutil.copytree(
+        REPO / "baselines", tmp_path / "baselines", ignore=shutil.ignore_patterns("*.pt", "__pycache__")
+    )
     md = root / lb.MARKDOWN
     md.write_text(md.read_text().replace("| **11.83** |", "| **11.84** |", 1))
     problems = lb.check(root, both_data_dir)
@@ -459,7 +478,7 @@ def test_a_copy_of_the_committed_leaderboard_with_one_changed_digit_fails(
 def test_cli_add_makes_an_entry_that_build_ranks(
     board: Path, v1_data_dir: Path, v1_preds: dict[str, Path], monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    monkeypatch.setattr(lb, "RANK_RESAMPLES", FAST)
+    monkeypatch.setattr(ranking, "RANK_RESAMPLES", FAST)
     runner = CliRunner()
     common = ["--root", str(board), "--data-dir", str(v1_data_dir)]
     args = ["leaderboard", "add", str(v1_preds["expansion"]), "--method", "exp2", "--name", "Exp 2"]
@@ -516,3 +535,83 @@ def test_a_readme_without_the_markers_is_left_alone(board: Path, v1_data_dir: Pa
     lb.write(board, lb.build(board, v1_data_dir, n_resamples=FAST), plot=False)
     assert readme.read_text() == "# Project\n"
     assert _check(board, v1_data_dir) == []
+
+
+# ----------------------------------------------------------------------------- boards, hardening, frame
+
+
+def test_every_board_is_shown_and_an_empty_one_says_so(board: Path, v1_data_dir: Path) -> None:
+    built = lb.build(board, v1_data_dir, n_resamples=FAST)
+    assert [b.spec for b in built.boards] == list(lb.BOARDS)
+    empty = [b for b in built.boards if not b.rows]
+    assert {b.benchmark for b in empty} == {"odmd-paper", "odms-detection"}
+    for text in (built.markdown, built.readme_block):
+        section = text[text.index("odms-detection test") :].split("#", 1)[0]
+        assert (
+            "\nNo entries yet. Add one with `odmd-bench leaderboard add PREDS.csv --benchmark odms-detection"
+            in section
+        )
+    odms = next(b for b in json.loads(built.json_text)["boards"] if b["benchmark"] == "odms-detection")
+    assert odms["rows"] == [] and odms["sets"] == ["normal", "perturb", "robot", "driving"]
+    assert odms["data_version"] is None
+
+
+def test_boards_match_the_registry() -> None:
+    from odmd_bench.data.registry import BENCHMARKS
+
+    assert [b.key for b in lb.BOARDS] == ["odmd-paper test", "odmd-v1 test", "odms-detection test"]
+    for spec in lb.BOARDS:
+        assert (
+            spec.sets == BENCHMARKS[spec.benchmark].sets and spec.split in BENCHMARKS[spec.benchmark].splits
+        )
+
+
+def test_a_link_to_another_entrys_predictions_fails_check(board: Path, v1_data_dir: Path) -> None:
+    mine = board / lb.ENTRIES / "box-ls" / "odmd-v1-test" / "predictions.csv.gz"
+    mine.unlink()
+    mine.symlink_to(board / lb.ENTRIES / "expansion" / "odmd-v1-test" / "predictions.csv.gz")
+    problems = _check(board, v1_data_dir)
+    assert problems[:2] == [
+        "entry box-ls/odmd-v1-test: symbolic links are not allowed",
+        "  box-ls/odmd-v1-test/predictions.csv.gz is a symbolic link; an entry holds plain files "
+        "(links are not followed)",
+    ]
+
+
+@pytest.mark.parametrize(
+    ("over", "expected"),
+    [
+        ({"date": "2999-01-01"}, "date 2999-01-01 is in the future"),
+        ({"code": "baselines/../../../../etc/passwd"}, "is a path outside the repository"),
+        ({"name": "N" * 5000}, "field 'name' is 5000 characters long; at most 80"),
+        ({"method": "../../escape"}, "method '../../escape' must be lowercase letters"),
+    ],
+)
+def test_add_applies_the_same_validation_as_check(
+    board: Path, v1_data_dir: Path, v1_preds: dict[str, Path], over: dict[str, Any], expected: str
+) -> None:
+    before = sorted(p for p in board.parent.rglob("*"))
+    with pytest.raises(ValidationError) as info:
+        _add(board, v1_data_dir, v1_preds["box_ls"], str(over.pop("method", "newbie")), **over)
+    assert expected in info.value.render()
+    assert sorted(p for p in board.parent.rglob("*")) == before  # nothing written
+
+
+def test_add_refuses_a_split_without_a_board(
+    board: Path, v1_data_dir: Path, v1_preds: dict[str, Path]
+) -> None:
+    with pytest.raises(UsageError, match="there is no board for odmd-v1 val"):
+        _add(board, v1_data_dir, v1_preds["box_ls"], "newbie", split="val")
+
+
+def test_frame_holds_the_leaderboard(board: Path, v1_data_dir: Path) -> None:
+    pytest.importorskip("pandas")
+    df = lb.frame(board)
+    rows = _rows(json.loads((board / lb.JSON_FILE).read_text()))
+    assert list(df["method"]) == [r["method"] for r in rows]
+    assert list(df["all"]) == [r["all"] for r in rows]
+    assert list(df["camera"]) == [r["sets"]["camera"]["percent_error"]["mean"] for r in rows]
+    assert list(df["group"]) == [r["group"] for r in rows] and str(df["group"].dtype) == "Int64"
+    assert {"perturb", "driving"}.isdisjoint(df.columns)  # no board with entries has them
+    built = lb.build(board, v1_data_dir, n_resamples=FAST)
+    assert lb.frame(built).equals(df)

@@ -1,4 +1,4 @@
-"""The metrics of CONTRACT section 5 as pure functions."""
+"""The metrics of docs/format.md ("Metrics") as pure functions."""
 
 from __future__ import annotations
 

@@ -19,7 +19,7 @@ from odmd_bench import CameraConfig, DataError, Examples, GeneratorConfig, Usage
 
 
 def _percent_error(depth: np.ndarray, ex: Examples) -> np.ndarray:
-    return np.abs(depth - ex.depth) / ex.depth * 100.0
+    return odmd_bench.percent_error(ex.depth, depth)
 
 
 def _without(ex: Examples, *keys: str) -> Examples:

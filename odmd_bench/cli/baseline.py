@@ -1,61 +1,44 @@
-"""``baseline``: run a baseline method on every set of a split and write predictions.
+"""``baseline``: run a registered method on every set of a split and write predictions.
 
-The methods live in the top-level ``baselines`` package, one module each, and are
-imported only when asked for, so that ``torch`` is loaded for ``dbox`` alone and a method
-that is not installed gives a clear error instead of breaking the whole command line.
+The methods are plug-ins (:mod:`odmd_bench.methods`): ``NAME`` is looked up among the
+entry points of the group ``odmd_bench.methods``, and the method's module is imported
+only then, so that torch is loaded for a method that needs it alone and a missing one is
+a usage error naming the extra to install.
 """
 
 from __future__ import annotations
 
-import importlib
 from pathlib import Path
-from types import ModuleType
 from typing import Any
 
 import click
-import numpy as np
 
-from odmd_bench.data.registry import BENCHMARKS, DATA_DIR_ENV, DEFAULT_BENCHMARK, SPLITS
-from odmd_bench.errors import UsageError
+from odmd_bench.cli.options import data_dir_option
+from odmd_bench.data.registry import BENCHMARKS, DEFAULT_BENCHMARK, SPLITS
 
-#: Command-line name -> (module under ``baselines``, what it needs beyond numpy).
-BASELINES: dict[str, tuple[str, str]] = {
-    "box-ls": ("box_ls", ""),
-    "parallax": ("parallax", "the camera intrinsics"),
-    "expansion": ("expansion", ""),
-    "dbox": ("dbox", "torch"),
-    "robust": ("robust", "the camera intrinsics"),
-}
+#: The method-specific options: each is passed, as the keyword of its name, only to a
+#: method whose functions take that keyword (others refuse it, naming those that take it).
+OPTIONS = ("weights", "config", "selection", "mode")
 
 
-def _import_method(name: str) -> ModuleType:
-    module_name = f"odmd_bench_baselines.{BASELINES[name][0]}"
-    try:
-        module = importlib.import_module(module_name)
-    except ModuleNotFoundError as e:
-        if e.name == "torch":
-            raise UsageError(
-                f"baseline {name!r} needs PyTorch, which is not installed (pip install torch)"
-            ) from None
-        if e.name is not None and (module_name == e.name or module_name.startswith(e.name + ".")):
-            raise UsageError(
-                f"baseline {name!r} is not available: module {module_name} is not installed "
-                "(install odmd-bench from a checkout of its repository, which includes baselines/)"
-            ) from None
-        raise
-    if not callable(getattr(module, "predict", None)):
-        raise UsageError(f"baseline {name!r} is not available: {module_name} has no predict() function")
-    return module
+def _list_methods(ctx: click.Context, _param: click.Parameter, value: bool) -> None:
+    if not value or ctx.resilient_parsing:
+        return
+    from odmd_bench import methods
+    from odmd_bench.errors import UsageError
 
-
-def _run(method: ModuleType, examples: Any, kwargs: dict[str, Any]) -> tuple[np.ndarray, dict[str, int]]:
-    """Depths and counted fallbacks, from ``predict_report`` where the method has one."""
-    report = getattr(method, "predict_report", None)
-    if report is not None:
-        depths, counts = report(examples, **kwargs)
-    else:
-        depths, counts = method.predict(examples, **kwargs), {}
-    return np.asarray(depths, dtype=np.float64), dict(counts)
+    for name in methods.names():
+        try:
+            method = methods.load(name)
+        except UsageError as e:  # a broken plug-in is listed as such, not a failure of --list
+            click.echo(f"{name}: not usable: {e}")
+            continue
+        taken = [f"--{k}" for k in OPTIONS if method.accepts(k)]
+        click.echo(
+            f"{name}: {method.target} (from {method.source})"
+            + (f"; takes {' '.join(taken)}" if taken else "")
+        )
+    ctx.exit(0)
 
 
 def default_output(name: str, benchmark: str, split: str) -> Path:
@@ -64,7 +47,16 @@ def default_output(name: str, benchmark: str, split: str) -> Path:
 
 
 @click.command()
-@click.argument("name", type=click.Choice(list(BASELINES)))
+@click.argument("name")
+@click.option(
+    "--list",
+    "list_",
+    is_flag=True,
+    expose_value=False,
+    is_eager=True,
+    callback=_list_methods,
+    help="List the registered methods, where each comes from and the options it takes, and exit.",
+)
 @click.option(
     "--benchmark",
     default=DEFAULT_BENCHMARK,
@@ -82,24 +74,25 @@ def default_output(name: str, benchmark: str, split: str) -> Path:
     default=None,
     help="Predictions CSV to write (default: preds-NAME-BENCHMARK-SPLIT.csv here).",
 )
-@click.option(
-    "--data-dir",
-    type=click.Path(file_okay=False, path_type=Path),
-    default=None,
-    help=f"Data folder (default: ${DATA_DIR_ENV}, else ~/.local/share/odmd-bench).",
-)
+@data_dir_option
 @click.option(
     "--weights",
     type=click.Path(exists=True, dir_okay=False, path_type=Path),
     default=None,
-    help="dbox only: checkpoint to load (also the original release's layout).",
+    help="Checkpoint file for the methods that load one (see --list).",
+)
+@click.option(
+    "--config", default=None, help="Named configuration, for the methods that have them (see --list)."
+)
+@click.option(
+    "--selection",
+    default=None,
+    help="How the weights were selected, for the methods that ship several (see --list).",
 )
 @click.option(
     "--mode",
-    type=click.Choice(["full", "scale"]),
     default=None,
-    help="robust only: 'full' (reprojection of every box coordinate; needs intrinsics) or "
-    "'scale' (box sizes only: for sets without intrinsics, e.g. odms-detection).",
+    help="Mode, for the methods that have several (see --list).",
 )
 def baseline(
     name: str,
@@ -108,48 +101,44 @@ def baseline(
     output: Path | None,
     data_dir: Path | None,
     weights: Path | None,
+    config: str | None,
+    selection: str | None,
     mode: str | None,
 ) -> None:
-    """Run baseline NAME on every set of a split and write a predictions CSV.
+    """Run method NAME on every set of a split and write a predictions CSV.
 
-    NAME is one of box-ls (the paper's n-observation least squares), parallax and
-    expansion (two-observation analytical solutions of the supplementary material),
-    dbox (the paper's network; needs torch) and robust.
+    NAME is a method registered under the entry-point group odmd_bench.methods, by this
+    package or any other installed one: --list shows them.
     """
-    from odmd_bench import load_split
+    import numpy as np
+
+    from odmd_bench import load_split, methods
     from odmd_bench.evaluation.predictions import write_predictions
 
-    if weights is not None and name != "dbox":
-        raise UsageError(f"--weights applies to dbox only, not to {name!r}")
-    if mode is not None and name != "robust":
-        raise UsageError(f"--mode applies to robust only, not to {name!r}")
-    method = _import_method(name)
-    kwargs: dict[str, Any] = {"weights": weights} if weights is not None else {}
-    if mode is not None:
-        kwargs["mode"] = mode
+    method = methods.load(name)
+    given = {"weights": weights, "config": config, "selection": selection, "mode": mode}
+    options: dict[str, Any] = {k: v for k, v in given.items() if v is not None}
+    methods.check_options(method, options, spell=lambda k: f"--{k}")
 
     sets = load_split(split, benchmark, data_dir)
     depths: dict[str, np.ndarray] = {}
-    fallbacks: dict[str, dict[str, int]] = {}
+    reports: dict[str, dict[str, int | str]] = {}
     for set_name, examples in sets.items():
-        depths[set_name], fallbacks[set_name] = _run(method, examples, kwargs)
-        # Every method promises one finite depth per example; anything else is its bug.
-        if depths[set_name].shape != (len(examples),):
-            raise RuntimeError(
-                f"baseline {name} returned shape {depths[set_name].shape} for {len(examples)} examples"
-            )
-        if not np.isfinite(depths[set_name]).all():
-            bad = int((~np.isfinite(depths[set_name])).sum())
-            raise RuntimeError(f"baseline {name} returned {bad} non-finite depths on set {set_name}")
+        depths[set_name], reports[set_name] = method.run(examples, **options)
 
     path = output if output is not None else default_output(name, benchmark, split)
     write_predictions(path, split, depths, benchmark=benchmark)
     n = sum(len(v) for v in depths.values())
     click.echo(f"{name} on {benchmark} {split}: wrote {n} predictions ({', '.join(depths)}) to {path}")
-    for set_name, counts in fallbacks.items():
-        used = {k: v for k, v in counts.items() if k != "n" and v}
-        summary = ", ".join(f"{k} {v}" for k, v in used.items()) if used else "none"
-        click.echo(f"  {set_name}: fallbacks: {summary}")
+    # The report's strings (what the method says of its run) once where every set agrees.
+    said = [{k: v for k, v in r.items() if isinstance(v, str)} for r in reports.values()]
+    common = {k: v for k, v in said[0].items() if all(d.get(k) == v for d in said)} if said else {}
+    if common:
+        click.echo("  " + "; ".join(f"{k} {v}" for k, v in common.items()))
+    for (set_name, report), own in zip(reports.items(), said, strict=True):
+        used = [f"{k} {v}" for k, v in report.items() if isinstance(v, int) and k != "n" and v]
+        extra = "".join(f"; {k} {v}" for k, v in own.items() if k not in common)
+        click.echo(f"  {set_name}: fallbacks: {', '.join(used) or 'none'}{extra}")
     hint = f"odmd-bench evaluate {path}"
     if benchmark != DEFAULT_BENCHMARK:
         hint += f" --benchmark {benchmark}"

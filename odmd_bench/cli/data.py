@@ -7,14 +7,10 @@ from pathlib import Path
 
 import click
 
-from odmd_bench.data.registry import BENCHMARKS, DATA_DIR_ENV, SPLITS, resolve_data_dir
+from odmd_bench.cli.options import data_dir_option, data_dir_option_with
+from odmd_bench.data.registry import BENCHMARKS, SPLITS, resolve_data_dir
 
-data_dir_option = click.option(
-    "--data-dir",
-    type=click.Path(file_okay=False, path_type=Path),
-    default=None,
-    help=f"Data folder (default: ${DATA_DIR_ENV}, else ~/.local/share/odmd-bench).",
-)
+__all__ = ["COMMANDS", "data_dir_option"]
 
 
 @click.command()
@@ -26,17 +22,14 @@ data_dir_option = click.option(
     help="Generated benchmark to write.",
 )
 @click.option("--split", type=click.Choice(SPLITS), default=None, help="Only this split (default: both).")
-@click.option(
-    "--out",
-    "--data-dir",
-    "data_dir",
-    type=click.Path(file_okay=False, path_type=Path),
-    default=None,
-    help=f"Data folder to write into (default: ${DATA_DIR_ENV}, else ~/.local/share/odmd-bench).",
-)
+@data_dir_option_with("--out")
 @click.option("--force", is_flag=True, help="Regenerate even files that are already right.")
 def generate(benchmark: str, split: str | None, data_dir: Path | None, force: bool) -> None:
-    """Write the val and test files of a generated benchmark, verified against splits/."""
+    """Write the val and test files of a generated benchmark, verified against splits/.
+
+    A file that is missing, damaged, altered or stale is rebuilt (and the reason
+    printed); a right one is reused.
+    """
     from odmd_bench.data.store import ensure_generated
 
     splits = [split] if split else list(SPLITS)
@@ -44,7 +37,7 @@ def generate(benchmark: str, split: str | None, data_dir: Path | None, force: bo
         benchmark, splits, data_dir, force=force, progress=lambda m: click.echo(m, err=True)
     )
     for s, info in result.items():
-        state = "reused" if info["reused"] else "written"
+        state = "reused" if info["reused"] else "rebuilt" if info["replaced"] else "written"
         sets = ", ".join(f"{k} {v[:12]}" for k, v in info["sets"].items())
         click.echo(f"{benchmark} {s}: {info['path']} ({state}; verified: {sets})")
 
@@ -64,11 +57,21 @@ def generate(benchmark: str, split: str | None, data_dir: Path | None, force: bo
     help="Also import files whose SHA-256 is not one of the pinned originals (not comparable with the paper).",
 )
 def import_(source: Path, benchmark: str | None, data_dir: Path | None, allow_unknown: bool) -> None:
-    """Convert original ODMD / ODMS-detection .pk files (a file or a folder) into HDF5."""
+    """Convert original ODMD / ODMS-detection .pk files (a file or a folder) into HDF5.
+
+    Sets already in the data folder are kept when they pass every check; a damaged
+    one (or an unreadable file) is replaced, and a warning says which.
+    """
     from odmd_bench.data.importer import import_release
     from odmd_bench.data.registry import set_file
 
-    written = import_release(source, data_dir, benchmark=benchmark, allow_unknown=allow_unknown)
+    written = import_release(
+        source,
+        data_dir,
+        benchmark=benchmark,
+        allow_unknown=allow_unknown,
+        progress=lambda m: click.echo(f"warning: {m}", err=True),
+    )
     for (bench, split), sets in written.items():
         click.echo(f"{bench} {split}: {set_file(bench, split, data_dir)} ({', '.join(sets)})")
 

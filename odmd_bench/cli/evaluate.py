@@ -1,16 +1,23 @@
-"""``evaluate`` and ``compare``: score a predictions file, compare two."""
+"""``evaluate`` and ``compare``: score a predictions file, compare two, gate a CI job."""
 
 from __future__ import annotations
 
+import os
+import sys
 from pathlib import Path
+from typing import Any
 
 import click
 
+from odmd_bench.cli.options import data_dir_option
+from odmd_bench.errors import UsageError
 from odmd_bench.evaluation.report import FORMATS
 
 _BENCHMARK_HELP = "Benchmark the file is for [default: the file's benchmark column, else odmd-v1]."
-_DATA_HELP = "Data folder [default: $ODMD_BENCH_DATA, else ~/.local/share/odmd-bench]."
 _SETS_HELP = "Score only these sets (comma-separated, e.g. normal,robot); other sets' rows are ignored."
+_OUTPUT_HELP = "Write the report to FILE instead of stdout ('-': stdout)."
+_PREDS = click.Path(path_type=Path, allow_dash=True)
+_OUT = click.Path(path_type=Path, dir_okay=False, allow_dash=True)
 
 
 def _sets(value: str | None) -> list[str] | None:
@@ -22,53 +29,125 @@ def _warn(warnings: tuple[str, ...] | list[str]) -> None:
         click.echo(f"warning: {w}", err=True)
 
 
+def _source(path: Path) -> tuple[Any, str | None]:
+    """What to read (a path, or stdin's bytes) and the name to report it by."""
+    if str(path) == "-":
+        return sys.stdin.buffer, "<stdin>"
+    return path, None
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    try:
+        return os.path.samefile(a, b)  # symbolic and hard links alike
+    except OSError:
+        return a.resolve() == b.resolve()
+
+
+def _refuse_overwrite(outputs: dict[str, Path | None], inputs: list[Path]) -> None:
+    """A report must never replace a file being scored, nor another report.
+
+    ``outputs``: option -> file, ``None`` or ``-`` for stdout. Paths are compared by
+    what they resolve to, so a symbolic or hard link to an input is refused too.
+    """
+    files = {opt: p for opt, p in outputs.items() if p is not None and str(p) != "-"}
+    problems = [
+        f"{opt} {p} is the predictions file {src} being scored; write it elsewhere"
+        for opt, p in files.items()
+        for src in inputs
+        if str(src) != "-" and _same_file(p, src)
+    ]
+    named = list(files.items())
+    problems += [
+        f"{o1} and {o2} name the same file {p1}"
+        for i, (o1, p1) in enumerate(named)
+        for o2, p2 in named[i + 1 :]
+        if _same_file(p1, p2)
+    ]
+    if len(outputs) - len(files) > 1:
+        problems.append(f"{' and '.join(outputs)} cannot both write to stdout; give one of them a file")
+    if problems:
+        raise UsageError("refusing to write the output", problems)
+
+
+def _emit(text: str, output: Path | None, what: str) -> None:
+    if output is None or str(output) == "-":
+        click.echo(text, nl=False)
+        return
+    from odmd_bench.data.io import atomic_write
+
+    with atomic_write(output, "w") as fh:
+        fh.write(text)
+    click.echo(f"wrote {what} to {output}", err=True)
+
+
 @click.command("evaluate")
-@click.argument("preds", type=click.Path(path_type=Path, dir_okay=True))
+@click.argument("preds", type=_PREDS)
 @click.option("--benchmark", default=None, help=_BENCHMARK_HELP)
-@click.option("--data-dir", type=click.Path(path_type=Path, file_okay=False), default=None, help=_DATA_HELP)
+@data_dir_option
 @click.option("--format", "fmt", type=click.Choice(FORMATS), default="table", show_default=True)
+@click.option("-o", "--output", type=_OUT, default=None, help=_OUTPUT_HELP)
 @click.option(
     "--per-example",
-    type=click.Path(path_type=Path, dir_okay=False),
+    type=_OUT,
     default=None,
     help="Also write a CSV with each example's prediction, truth, percent and absolute error, "
-    "number of detected boxes, camera move length and box size.",
+    "number of detected boxes, camera move length and box size ('-': stdout).",
 )
 @click.option("--sets", default=None, help=_SETS_HELP)
+@click.option(
+    "--max-all",
+    type=float,
+    default=None,
+    metavar="X",
+    help="Exit with status 1 when All (the mean of the sets' mean percent errors) is above X.",
+)
 def evaluate_command(
     preds: Path,
     benchmark: str | None,
     data_dir: Path | None,
     fmt: str,
+    output: Path | None,
     per_example: Path | None,
     sets: str | None,
+    max_all: float | None,
 ) -> None:
     """Validate the predictions CSV PREDS and score it.
 
-    PREDS is a CSV file with a header and one row per example: split, set, index
-    (0-based), depth (metres), and optionally benchmark; other columns are ignored,
-    rows may come in any order. A file with any problem is refused as a whole, with
-    every problem named (exit status 2). Zero or negative depths are scored as given,
-    with a warning.
+    PREDS is a CSV file (or .csv.gz, or - for stdin) with a header and one row per
+    example: split, set, index (0-based), depth (metres), and optionally benchmark;
+    other columns are ignored, rows may come in any order. A file with any problem is
+    refused as a whole, with every problem named (exit status 2). Zero or negative
+    depths are scored as given, with a warning.
     """
-    from odmd_bench.evaluation.report import format_result, write_per_example
+    from odmd_bench.evaluation.gates import check_ceiling, max_all_gate
+    from odmd_bench.evaluation.report import format_per_example, format_result
     from odmd_bench.evaluation.scoring import evaluate
 
-    result = evaluate(preds, benchmark=benchmark, data_dir=data_dir, sets=_sets(sets))
+    outputs = {"--output": output} | ({"--per-example": per_example} if per_example is not None else {})
+    _refuse_overwrite(outputs, [preds])
+    if max_all is not None:
+        check_ceiling(max_all)  # before scoring, so that a bad X fails fast
+    source, name = _source(preds)
+    result = evaluate(source, benchmark=benchmark, data_dir=data_dir, sets=_sets(sets), name=name)
     _warn(result.warnings)
     if per_example is not None:
-        write_per_example(per_example, result)
-        click.echo(f"wrote per-example errors to {per_example}", err=True)
-    click.echo(format_result(result, fmt), nl=False)
+        _emit(format_per_example(result), per_example, "per-example errors")
+    _emit(format_result(result, fmt), output, "the report")
+    if max_all is not None:
+        passed, line = max_all_gate(result, max_all)
+        click.echo(line, err=True)
+        if not passed:
+            click.get_current_context().exit(1)
 
 
 @click.command("compare")
-@click.argument("a", type=click.Path(path_type=Path))
-@click.argument("b", type=click.Path(path_type=Path))
+@click.argument("a", type=_PREDS)
+@click.argument("b", type=_PREDS)
 @click.option("--benchmark", default=None, help=_BENCHMARK_HELP)
-@click.option("--data-dir", type=click.Path(path_type=Path, file_okay=False), default=None, help=_DATA_HELP)
+@data_dir_option
 @click.option("--format", "fmt", type=click.Choice(FORMATS), default="table", show_default=True)
-@click.option("--sets", default=None, help=_SETS_HELP)
+@click.option("-o", "--output", type=_OUT, default=None, help=_OUTPUT_HELP)
+@click.option("--sets", default=None, help=_SETS_HELP + " With --fail-if-worse, each is also a gate.")
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of the bootstrap and the test.")
 @click.option(
     "--resamples",
@@ -77,30 +156,67 @@ def evaluate_command(
     show_default=True,
     help="Bootstrap resamples and sign flips.",
 )
+@click.option(
+    "--confidence",
+    type=click.FloatRange(0, 1, min_open=True, max_open=True),
+    default=0.95,
+    show_default=True,
+    help="Level of the interval; the test's threshold is 1 - confidence.",
+)
+@click.option(
+    "--fail-if-worse",
+    is_flag=True,
+    help="Exit with status 1 when B (the candidate) is significantly worse than A (the baseline) "
+    "on All, or on any set of --sets.",
+)
 def compare_command(
     a: Path,
     b: Path,
     benchmark: str | None,
     data_dir: Path | None,
     fmt: str,
+    output: Path | None,
     sets: str | None,
     seed: int,
     resamples: int,
+    confidence: float,
+    fail_if_worse: bool,
 ) -> None:
     """Compare two predictions files A and B on the same benchmark and split.
 
     Per set and for All: the difference in mean percent error A - B with a paired
-    bootstrap 95% interval, a paired sign-flip test, and a verdict (A better, B better,
-    not distinguishable). Both files are validated as by `evaluate`.
+    bootstrap interval, a paired sign-flip test, and a verdict (A better, B better,
+    not distinguishable). Both files are validated as by `evaluate`; either may be -
+    (stdin). In CI, A is the committed baseline and B the candidate: --fail-if-worse.
     """
     from odmd_bench.evaluation.compare import compare_files
     from odmd_bench.evaluation.report import format_comparison
 
+    if str(a) == "-" and str(b) == "-":
+        raise UsageError("A and B cannot both be read from stdin (-)")
+    _refuse_overwrite({"--output": output}, [a, b])
+    (src_a, name_a), (src_b, name_b) = _source(a), _source(b)
     c, ra, rb = compare_files(
-        a, b, benchmark=benchmark, data_dir=data_dir, sets=_sets(sets), n_resamples=resamples, seed=seed
+        src_a,
+        src_b,
+        benchmark=benchmark,
+        data_dir=data_dir,
+        sets=_sets(sets),
+        n_resamples=resamples,
+        seed=seed,
+        confidence=confidence,
+        names=(name_a, name_b),
     )
     _warn([f"A: {w}" for w in ra.warnings] + [f"B: {w}" for w in rb.warnings])
-    click.echo(format_comparison(c, fmt), nl=False)
+    _emit(format_comparison(c, fmt), output, "the comparison")
+    if fail_if_worse:
+        from odmd_bench.evaluation.gates import fail_if_worse as worse_gate
+
+        passed, lines = worse_gate(c, list(c.sets) if sets is not None else [])
+        for line in lines:
+            click.echo(line, err=True)
+        if not passed:
+            click.get_current_context().exit(1)
 
 
 COMMANDS: list[click.Command] = [evaluate_command, compare_command]

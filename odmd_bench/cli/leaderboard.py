@@ -6,7 +6,8 @@ from pathlib import Path
 
 import click
 
-from odmd_bench.data.registry import BENCHMARKS, DATA_DIR_ENV, SPLITS
+from odmd_bench.cli.options import data_dir_option
+from odmd_bench.data.registry import BENCHMARKS, SPLITS
 from odmd_bench.errors import ValidationError
 
 _root_option = click.option(
@@ -15,13 +16,7 @@ _root_option = click.option(
     default=None,
     help="The leaderboard folder [default: leaderboard/ in the current folder or a parent].",
 )
-_data_option = click.option(
-    "--data-dir",
-    type=click.Path(file_okay=False, path_type=Path),
-    default=None,
-    help=f"Data folder [default: ${DATA_DIR_ENV}, else ~/.local/share/odmd-bench]. "
-    "odmd-v1 is generated there when missing.",
-)
+_data_option = data_dir_option
 _original_option = click.option(
     "--original",
     type=click.Path(exists=True, file_okay=False, path_type=Path),
@@ -91,19 +86,27 @@ def check_command(root: Path | None, data_dir: Path | None, original: Path | Non
 @leaderboard.command("add")
 @click.argument("predictions", type=click.Path(exists=True, dir_okay=False, path_type=Path))
 @click.option("--method", required=True, help="Method id, lowercase (the entry folder's name), e.g. dbox.")
-@click.option("--name", required=True, help="Name shown in the table, e.g. DBox_p.")
-@click.option("--description", required=True, help="One or two sentences.")
+@click.option(
+    "--name", required=True, help="Name shown in the table, e.g. DBox_p (one line, at most 80 characters)."
+)
+@click.option("--description", required=True, help="One or two sentences (at most 500 characters).")
 @click.option("--paper", required=True, help="Link to the paper, or 'none'.")
 @click.option("--code", required=True, help="Link to the code, or a path in this repository.")
 @click.option("--training-data", required=True, help="What it trained on ('none' for analytical methods).")
 @click.option("--command", "command_", required=True, help="The exact command that produced the predictions.")
 @click.option("--benchmark", required=True, type=click.Choice(list(BENCHMARKS)))
-@click.option("--split", default="test", show_default=True, type=click.Choice(SPLITS))
+@click.option(
+    "--split",
+    default="test",
+    show_default=True,
+    type=click.Choice(SPLITS),
+    help="The split; there must be a board for it (today: test).",
+)
 @click.option(
     "--calibrated/--uncalibrated", required=True, help="Whether the method uses the camera intrinsics."
 )
-@click.option("--date", default=None, help="YYYY-MM-DD [default: today].")
-@click.option("--notes", default=None, help="Anything else a reader should know.")
+@click.option("--date", default=None, help="YYYY-MM-DD, not in the future [default: today].")
+@click.option("--notes", default=None, help="Anything else a reader should know (at most 1000 characters).")
 @click.option("--replace", is_flag=True, help="Overwrite an existing entry.")
 @_root_option
 @_data_option

@@ -1,12 +1,19 @@
 """The ``odmd-bench`` command line: parse, call the library, print. No logic here.
 
-Each area's commands live in ``odmd_bench/commands/<area>.py`` and are added below.
+Each area's commands live in ``odmd_bench/cli/<area>.py`` and are added below.
 Errors: the package's own exceptions (bad input, bad usage) print a one-pass report
-and exit 2; click's usage errors exit 2; anything else is a bug and exits 1.
+and exit 2, and so does any ``OSError`` (one line: the path and the cause); click's
+usage errors exit 2; anything else is a bug and exits 1. When the command was given
+``--format json``, errors are printed to stderr as one JSON object
+``{"error": ..., "problems": [...]}``. A reader that closes the pipe early
+(``odmd-bench info FILE | head -1``) ends the command quietly, with status 141
+(128 + SIGPIPE, as a shell reports a command killed by SIGPIPE).
 """
 
 from __future__ import annotations
 
+import json
+import os
 import sys
 import traceback
 from typing import Any
@@ -16,16 +23,66 @@ import click
 from odmd_bench import __version__
 from odmd_bench.errors import OdmdError
 
+#: Exit status when stdout is closed by its reader.
+EXIT_BROKEN_PIPE = 141
+
+
+def _wants_json(args: list[str]) -> bool:
+    """True if the command line gives ``--format json`` (or ``--format=json``)."""
+    for i, a in enumerate(args):
+        if a == "--format=json" or (a == "--format" and i + 1 < len(args) and args[i + 1] == "json"):
+            return True
+    return False
+
+
+def _silence_stdout() -> None:
+    """Point stdout at /dev/null, so that the interpreter's last flush cannot fail."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+    except (OSError, ValueError, AttributeError):  # not a real file (tests): nothing to protect
+        pass
+
+
+def _os_error_line(e: OSError) -> str:
+    cause = e.strerror or str(e) or type(e).__name__
+    where = " -> ".join(str(f) for f in (e.filename, e.filename2) if f is not None)
+    return f"{where}: {cause}" if where else cause
+
 
 class _Group(click.Group):
+    def resolve_command(self, ctx: click.Context, args: list[str]) -> Any:
+        # Remember the command line, to answer in JSON when it asks for JSON output.
+        ctx.meta["odmd_bench.args"] = list(args)
+        return super().resolve_command(ctx, args)
+
+    def _report(self, ctx: click.Context, message: str, problems: list[str], text: str) -> None:
+        if _wants_json(ctx.meta.get("odmd_bench.args", [])):
+            click.echo(json.dumps({"error": message, "problems": problems}), err=True)
+        else:
+            click.echo(text, err=True)
+
     def invoke(self, ctx: click.Context) -> Any:
         try:
             return super().invoke(ctx)
         except OdmdError as e:
-            click.echo(f"error: {e.render()}", err=True)
+            self._report(ctx, e.message, e.problems, f"error: {e.render()}")
             ctx.exit(2)
-        except (click.exceptions.Exit, click.exceptions.Abort, click.ClickException):
+        except BrokenPipeError:
+            _silence_stdout()
+            ctx.exit(EXIT_BROKEN_PIPE)
+        except (click.exceptions.Exit, click.exceptions.Abort):
             raise
+        except click.ClickException as e:
+            if not _wants_json(ctx.meta.get("odmd_bench.args", [])):
+                raise
+            self._report(ctx, e.format_message(), [], "")
+            ctx.exit(e.exit_code)
+        except OSError as e:
+            line = _os_error_line(e)
+            self._report(ctx, line, [], f"error: {line}")
+            ctx.exit(2)
         except KeyboardInterrupt:
             click.echo("interrupted; no partial file was left behind", err=True)
             ctx.exit(130)
@@ -38,7 +95,7 @@ class _Group(click.Group):
             ctx.exit(1)
 
 
-@click.group(cls=_Group)
+@click.group(cls=_Group, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(__version__, prog_name="odmd-bench")
 def cli() -> None:
     """odmd-bench: data, evaluation and baselines for ODMD (Griffin and Corso, CVPR 2021)."""
@@ -53,9 +110,9 @@ def cli() -> None:
 
 
 def _register() -> None:
-    from odmd_bench.cli import baseline, data, dbox, evaluate, leaderboard
+    from odmd_bench.cli import baseline, data, dbox, evaluate, leaderboard, predict
 
-    for module in (data, baseline, evaluate, leaderboard, dbox):
+    for module in (data, baseline, predict, evaluate, leaderboard, dbox):
         for command in module.COMMANDS:
             cli.add_command(command)
 
@@ -64,4 +121,18 @@ _register()
 
 
 def main() -> None:
-    sys.exit(cli.main(standalone_mode=True))
+    """Run the command line (the ``odmd-bench`` script and ``python -m odmd_bench``)."""
+    code: int | str | None = 0
+    try:
+        cli.main(prog_name="odmd-bench")
+    except SystemExit as e:
+        code = e.code
+    except BrokenPipeError:
+        _silence_stdout()
+        code = EXIT_BROKEN_PIPE
+    try:
+        sys.stdout.flush()
+    except BrokenPipeError:  # the reader left before the last line was flushed
+        _silence_stdout()
+        code = code or EXIT_BROKEN_PIPE
+    sys.exit(code)

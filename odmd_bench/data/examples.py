@@ -29,7 +29,8 @@ class Examples:
         detected: (N, n_obs) bool, False where the detector found nothing.
         camera: (N, n_obs, 3) float64, camera position relative to the last
             observation in metres (camera axes); the last row is zero.
-        depth: (N,) float64, depth Z_n of the object at the last observation, metres.
+        depth: (N,) float64, depth Z_n of the object at the last observation, metres;
+            NaN where unknown (``depth=None`` on creation: unknown for every example).
         observation_depth: (N, n_obs) float64 or None, depth at each observation
             (NaN where unknown).
         extras: further per-example arrays the source knew (for generated sets:
@@ -43,12 +44,14 @@ class Examples:
     boxes: np.ndarray
     detected: np.ndarray
     camera: np.ndarray
-    depth: np.ndarray
+    depth: np.ndarray = None  # type: ignore[assignment]  # None -> all NaN in __post_init__
     observation_depth: np.ndarray | None = None
     extras: dict[str, np.ndarray] = field(default_factory=dict)
     attrs: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
+        if self.depth is None and self.boxes.ndim >= 1:
+            object.__setattr__(self, "depth", np.full(self.boxes.shape[0], np.nan))
         problems = []
         if self.boxes.ndim != 3 or self.boxes.shape[2] != 4:
             problems.append(f"boxes must be (N, n_obs, 4), got {self.boxes.shape}")
@@ -70,6 +73,34 @@ class Examples:
 
     def __len__(self) -> int:
         return int(self.boxes.shape[0])
+
+    @classmethod
+    def from_pixels(
+        cls,
+        corners: Any,
+        camera: Any,
+        image_size: tuple[float, float],
+        depth: Any = None,
+        **kwargs: Any,
+    ) -> Examples:
+        """Examples from pixel box corners and camera positions in a fixed frame.
+
+        See :func:`odmd_bench.data.pixels.from_pixels` (``intrinsics=``,
+        ``observation_depth=``, ``attrs=``).
+
+        Args:
+            corners: (N, n_obs, 4) ``x1, y1, x2, y2`` in pixels, NaN in all four where
+                the detector found nothing.
+            camera: (N, n_obs, 3) camera positions, metres, camera axes, any origin.
+            image_size: ``(width, height)`` in pixels.
+            depth: (N,) true depth at the last observation, or None (unknown).
+
+        Returns:
+            The examples in the package's convention.
+        """
+        from odmd_bench.data.pixels import from_pixels
+
+        return from_pixels(corners, camera, image_size, depth, **kwargs)
 
     @property
     def n_obs(self) -> int:

@@ -25,9 +25,10 @@ import numpy as np
 
 from odmd_bench.data.config import HSR_GRASP_CAMERA
 from odmd_bench.data.examples import Examples
-from odmd_bench.data.io import read_set, write_sets
+from odmd_bench.data.io import clean_stale_temps, group_attrs, locked, set_names, write_sets
 from odmd_bench.data.manifests import known_originals
 from odmd_bench.data.registry import get_benchmark, set_file
+from odmd_bench.data.store import pin_problem, read_checked
 from odmd_bench.errors import DataError, ImportRefused
 
 log = logging.getLogger("odmd_bench")
@@ -248,18 +249,30 @@ def import_release(
     *,
     benchmark: str | None = None,
     allow_unknown: bool = False,
+    progress: Callable[[str], None] | None = None,
 ) -> dict[tuple[str, str], dict[str, str]]:
     """Import every original file under ``source`` into the data folder.
 
-    Files are grouped by (benchmark, split) and merged into that benchmark's file
-    (sets already there and not re-imported are kept). Every file is checked before
-    anything is written; any refusal stops the import with all problems named.
+    Files are grouped by (benchmark, split) and merged into that benchmark's file.
+    Every file is checked before anything is written, and a known original must
+    convert to its pinned set (``splits/<benchmark>.json``); any refusal stops the
+    import with all problems named. The read-merge-replace of each split's file holds
+    the split's lock, so concurrent imports into one split keep each other's sets.
+    Sets already in the file and not re-imported are kept when they pass every check
+    of a load; a damaged, altered or unreadable one (or a whole unreadable file) is
+    dropped, and ``progress`` (default: a logged warning) says what was replaced.
 
-    Returns ``{(benchmark, split): {set: content hash}}`` of what was written.
+    Returns ``{(benchmark, split): {set: content hash}}`` of what the files now hold.
+
+    Raises:
+        ImportRefused: a file was refused (nothing written).
+        StorageError: a file cannot be written (the message says why and what to do).
     """
+    say = progress or log.warning
     if benchmark is not None:
         get_benchmark(benchmark)
     grouped: dict[tuple[str, str], dict[str, Examples]] = {}
+    digests: dict[tuple[str, str, str], str] = {}  # content hashes of the converted sets
     problems: list[str] = []
     for f in find_originals(source):
         try:
@@ -273,6 +286,14 @@ def import_release(
         if ex.attrs["set"] in grouped.get(key, {}):
             problems.append(f"{f}: a second file for {key[0]} {key[1]} {ex.attrs['set']}")
             continue
+        attrs = group_attrs(ex, ex.attrs["set"])
+        digests[(key[0], key[1], ex.attrs["set"])] = attrs["content_sha256"]
+        problem = pin_problem(key[0], key[1], ex.attrs["set"], attrs)
+        if problem:
+            problems.append(
+                f"{f}: its conversion is not the pinned set ({problem}); this odmd-bench converts differently"
+            )
+            continue
         grouped.setdefault(key, {})[ex.attrs["set"]] = ex
     if problems:
         raise ImportRefused("import refused; nothing was written", problems)
@@ -281,21 +302,49 @@ def import_release(
     written: dict[tuple[str, str], dict[str, str]] = {}
     for (bench, split), sets in sorted(grouped.items()):
         path = set_file(bench, split, data_dir)
-        merged: dict[str, Examples] = {}
-        if path.exists():
-            import h5py
-
-            try:
-                with h5py.File(path, "r") as fh:
-                    old = [k for k in fh if k not in sets]
-                merged = {k: read_set(path, k) for k in old}
-            except (OSError, DataError) as e:
-                log.warning("replacing unreadable %s (%s)", path, e)
-                merged = {}
-        merged.update(sets)
-        order = [s for s in get_benchmark(bench).sets if s in merged]
-        written[(bench, split)] = write_sets(
-            path, {s: merged[s] for s in order}, file_attrs={"benchmark": bench, "split": split}
-        )
+        for p in clean_stale_temps(path):
+            say(f"removed a dead writer's temporary file {p}")
+        with locked(path):
+            merged = _kept_sets(path, bench, split, sets, data_dir, say)
+            merged.update(sets)
+            order = [s for s in get_benchmark(bench).sets if s in merged]
+            written[(bench, split)] = write_sets(
+                path,
+                {s: merged[s] for s in order},
+                file_attrs={"benchmark": bench, "split": split},
+                digests={s: digests[(bench, split, s)] for s in sets}
+                | {s: str(ex.attrs["content_sha256"]) for s, ex in merged.items() if s not in sets},
+            )
         log.info("wrote %s (%s)", path, ", ".join(order))
     return written
+
+
+def _kept_sets(
+    path: Path,
+    bench: str,
+    split: str,
+    new: dict[str, Examples],
+    data_dir: str | os.PathLike[str] | None,
+    say: Callable[[str], None],
+) -> dict[str, Examples]:
+    """The good sets of ``path`` that are not re-imported; reports the others."""
+    if not path.exists() and not path.is_symlink():
+        return {}
+    try:
+        names = set_names(path)
+    except DataError as e:
+        say(f"{path} cannot be read and is replaced; only the sets imported now will be in it ({e.message})")
+        return {}
+    kept: dict[str, Examples] = {}
+    known = set(get_benchmark(bench).sets)
+    for name in names:
+        if name in new:
+            continue
+        if name not in known:
+            say(f"{path}: dropped the set {name!r}, which {bench} does not have")
+            continue
+        try:
+            kept[name] = read_checked(path, bench, split, name, data_dir, fix="import it again")
+        except DataError as e:
+            say(f"{path}: dropped the set {name!r}: {e.render()}")
+    return kept

@@ -68,12 +68,14 @@ def get_benchmark(name: str) -> Benchmark:
 
 
 def check_split(split: str) -> str:
+    """``split`` if it is a known split, else a :class:`UsageError` naming the valid ones."""
     if split not in SPLITS:
         raise UsageError(f"unknown split {split!r}; expected one of {', '.join(SPLITS)}")
     return split
 
 
 def check_set(benchmark: Benchmark, set_name: str) -> str:
+    """``set_name`` if ``benchmark`` has that set, else a :class:`UsageError` naming them."""
     if set_name not in benchmark.sets:
         raise UsageError(
             f"unknown set {set_name!r} for benchmark {benchmark.name!r}; "
@@ -83,18 +85,34 @@ def check_set(benchmark: Benchmark, set_name: str) -> str:
 
 
 def default_data_dir() -> Path:
-    """The data folder: ``$ODMD_BENCH_DATA`` if set, else ``$XDG_DATA_HOME/odmd-bench``
-    (``~/.local/share/odmd-bench`` when ``XDG_DATA_HOME`` is unset)."""
+    """The data folder: ``$ODMD_BENCH_DATA`` if set, else the OS's user data folder.
+
+    The user data folder follows each OS's convention through ``platformdirs``:
+    ``$XDG_DATA_HOME/odmd-bench`` (``~/.local/share/odmd-bench``) on Linux,
+    ``~/Library/Application Support/odmd-bench`` on macOS and
+    ``%LOCALAPPDATA%\\odmd-bench`` on Windows.
+    """
     env = os.environ.get(DATA_DIR_ENV)
     if env:
         return Path(env).expanduser()
-    xdg = os.environ.get("XDG_DATA_HOME")
-    base = Path(xdg).expanduser() if xdg else Path.home() / ".local" / "share"
-    return base / "odmd-bench"
+    import platformdirs  # here, not at the top: most commands are given a folder or the variable
+
+    return Path(platformdirs.user_data_dir("odmd-bench", appauthor=False))
 
 
 def resolve_data_dir(data_dir: str | os.PathLike[str] | None) -> Path:
+    """``data_dir`` if given, else :func:`default_data_dir`."""
     return Path(data_dir).expanduser() if data_dir is not None else default_data_dir()
+
+
+def rebuild_command(benchmark: str, data_dir: str | os.PathLike[str] | None = None) -> str:
+    """The command that (re)builds the files of ``benchmark`` in ``data_dir``."""
+    b = get_benchmark(benchmark)
+    where = f" --data-dir {data_dir}" if data_dir is not None else ""
+    if b.generated:
+        name = "" if benchmark == DEFAULT_BENCHMARK else f" --benchmark {benchmark}"
+        return f"odmd-bench generate{name}{where}"
+    return f"odmd-bench import PATH/TO/odmd-original --benchmark {benchmark}{where}"
 
 
 def set_file(benchmark: str, split: str, data_dir: str | os.PathLike[str] | None = None) -> Path:

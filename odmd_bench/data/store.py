@@ -1,8 +1,16 @@
 """Building, verifying and loading the benchmark files.
 
-``odmd-v1`` is defined by ``splits/odmd-v1.json``: for each split and generated set the
-generator version, preset, perturbation, seed, size and content SHA-256; for the robot
-sets, the committed HDF5 file under ``splits/odmd-v1/`` and its content SHA-256.
+Every benchmark has a pinned manifest ``splits/<benchmark>.json``: for each split and
+set its size, its content SHA-256 and its metadata SHA-256 (docs/integrity.md). For
+``odmd-v1`` it also says how each set is made: the generator version, preset,
+perturbation and seed, or, for the robot sets, the committed HDF5 file under
+``splits/odmd-v1/``. For the imported benchmarks it names the original file whose
+conversion gives the set.
+
+Every load checks a set's two hashes, its identity (benchmark, split, set) against
+where it was found and, where the set is a pinned one, the pins. Writers
+(:func:`ensure_generated`, the importer) hold a lock on the split's file while they
+read, merge and replace it.
 """
 
 from __future__ import annotations
@@ -15,9 +23,17 @@ from typing import Any
 
 from odmd_bench.data.examples import Examples
 from odmd_bench.data.generator import GENERATOR_VERSION, generate
-from odmd_bench.data.io import content_sha256, read_set, set_arrays, write_sets
+from odmd_bench.data.io import (
+    clean_stale_temps,
+    content_sha256,
+    group_attrs,
+    locked,
+    read_set,
+    set_arrays,
+    write_sets,
+)
 from odmd_bench.data.manifests import read_manifest, splits_dir
-from odmd_bench.data.registry import check_set, check_split, get_benchmark, set_file
+from odmd_bench.data.registry import check_set, check_split, get_benchmark, rebuild_command, set_file
 from odmd_bench.errors import DataError
 
 log = logging.getLogger("odmd_bench")
@@ -26,16 +42,27 @@ Progress = Callable[[str], None]
 
 
 def manifest(benchmark: str) -> dict[str, Any]:
-    """The pinned manifest of a generated benchmark."""
-    b = get_benchmark(benchmark)
-    if not b.generated:
-        raise DataError(f"benchmark {benchmark!r} is imported, not generated; it has no generation manifest")
+    """The pinned manifest of a benchmark (``splits/<benchmark>.json``)."""
+    get_benchmark(benchmark)
     return read_manifest(benchmark)
 
 
+def pin(benchmark: str, split: str, set_name: str) -> dict[str, Any]:
+    """The manifest entry of one set: ``n``, ``sha256``, ``meta_sha256`` and its source."""
+    try:
+        return dict(manifest(benchmark)["splits"][split][set_name])
+    except KeyError:
+        raise DataError(f"splits/{benchmark}.json pins no set {split} {set_name}") from None
+
+
 def build_set(benchmark: str, split: str, set_name: str) -> Examples:
-    """Make one set of a generated benchmark from its manifest entry (not verified)."""
-    entry = manifest(benchmark)["splits"][split][set_name]
+    """Make one set of a generated benchmark from its manifest entry (not yet checked
+    against the pins; :func:`ensure_generated` does that)."""
+    if not get_benchmark(benchmark).generated:
+        raise DataError(
+            f"benchmark {benchmark!r} is imported, not generated: run `{rebuild_command(benchmark)}`"
+        )
+    entry = pin(benchmark, split, set_name)
     if entry["kind"] == "generated":
         if entry["generator_version"] != GENERATOR_VERSION:
             raise DataError(
@@ -45,7 +72,11 @@ def build_set(benchmark: str, split: str, set_name: str) -> Examples:
         ex = generate(entry["n"], entry["preset"], entry["perturbation"], rng=entry["seed"])
         ex.attrs.update(source="generator", seed=entry["seed"], preset=entry["preset"])
     elif entry["kind"] == "file":
-        ex = read_set(splits_dir() / entry["file"], set_name)
+        ex = read_set(
+            splits_dir() / entry["file"],
+            set_name,
+            fix="the package's own files are damaged: reinstall odmd-bench",
+        )
     else:
         raise DataError(
             f"manifest entry for {benchmark} {split} {set_name} has unknown kind {entry['kind']!r}"
@@ -54,9 +85,46 @@ def build_set(benchmark: str, split: str, set_name: str) -> Examples:
     return ex
 
 
+def pin_problem(benchmark: str, split: str, set_name: str, attrs: dict[str, Any]) -> str | None:
+    """A problem line if a set with these attributes is not its pinned version, else None.
+
+    ``attrs`` are the set's stored attributes (``content_sha256`` and ``meta_sha256``
+    included, as :func:`~odmd_bench.data.io.group_attrs` gives them). A set of a
+    generated benchmark must always match its pins. A set of an imported benchmark
+    must match them when it is the conversion of a known original file (its
+    ``source_sha256`` is in ``splits/odmd-original.json``); sets imported with
+    ``--allow-unknown`` or written by other means are not pinned, and are checked
+    against their own hashes only.
+    """
+    if not get_benchmark(benchmark).generated:
+        from odmd_bench.data.manifests import known_originals
+
+        source = attrs.get("source_sha256")
+        if source is None or str(source) not in known_originals():
+            return None
+        entry = pin(benchmark, split, set_name)
+        if source != entry["source_sha256"]:
+            known = known_originals()[str(source)]
+            return (
+                f"{benchmark} {split} {set_name}: the set is the conversion of {known['path']}, "
+                f"not of the file pinned for it in splits/{benchmark}.json"
+            )
+    else:
+        entry = pin(benchmark, split, set_name)
+    for key, what in (("sha256", "content_sha256"), ("meta_sha256", "meta_sha256")):
+        got = str(attrs.get(what))
+        if got != entry[key]:
+            label = "content" if key == "sha256" else "metadata"
+            return (
+                f"{benchmark} {split} {set_name}: {label} SHA-256 {got[:16]}... differs from "
+                f"the pinned {entry[key][:16]}... in splits/{benchmark}.json"
+            )
+    return None
+
+
 def check_against_manifest(benchmark: str, split: str, set_name: str, digest: str) -> str | None:
-    """A problem line if ``digest`` is not the pinned hash of that set, else None."""
-    entry = manifest(benchmark)["splits"][split][set_name]
+    """A problem line if ``digest`` is not the pinned content hash of that set, else None."""
+    entry = pin(benchmark, split, set_name)
     if entry["sha256"] != digest:
         return (
             f"{benchmark} {split} {set_name}: content SHA-256 {digest[:16]}... differs from "
@@ -65,18 +133,42 @@ def check_against_manifest(benchmark: str, split: str, set_name: str, digest: st
     return None
 
 
-def _file_is_right(path: Path, benchmark: str, split: str) -> bool:
-    b = get_benchmark(benchmark)
-    if not path.exists():
-        return False
+def read_checked(
+    path: Path,
+    benchmark: str,
+    split: str,
+    set_name: str,
+    data_dir: str | os.PathLike[str] | None = None,
+    *,
+    fix: str | None = None,
+) -> Examples:
+    """Read one set of ``benchmark``/``split`` from ``path`` with every check of a load.
+
+    ``fix`` replaces the default advice (run the command that rebuilds the file).
+
+    Raises:
+        DataError: damaged, altered, stale, misplaced or not the pinned set; the
+            message gives the command that rebuilds it (``StorageError`` for an OS
+            failure, ``MissingDataError`` for a missing file).
+    """
+    fix = fix or f"run `{rebuild_command(benchmark, data_dir)}` to rebuild it"
+    ex = read_set(path, set_name, expect={"benchmark": benchmark, "split": split}, fix=fix)
+    problem = pin_problem(benchmark, split, set_name, ex.attrs)
+    if problem:
+        raise DataError(f"{path} is stale or altered; {fix}", [problem])
+    return ex
+
+
+def _why_not_right(path: Path, benchmark: str, split: str) -> str | None:
+    """None if ``path`` holds every set of the split with its pins, else why not."""
+    if not path.exists() and not path.is_symlink():
+        return "missing"
     try:
-        for s in b.sets:
-            ex = read_set(path, s)
-            if check_against_manifest(benchmark, split, s, str(ex.attrs["content_sha256"])):
-                return False
-    except DataError:
-        return False
-    return True
+        for s in get_benchmark(benchmark).sets:
+            read_checked(path, benchmark, split, s, fix="it is rebuilt")
+    except DataError as e:
+        return e.render()
+    return None
 
 
 def ensure_generated(
@@ -89,66 +181,109 @@ def ensure_generated(
 ) -> dict[str, dict[str, Any]]:
     """Write (or reuse) the files of a generated benchmark, each verified against ``splits/``.
 
-    A file that already holds every set with its pinned hash is reused; otherwise the
-    sets are generated, checked against the manifest *before* writing, written
-    atomically (a temp file renamed over the old one) and read back and checked again.
+    A file that already holds every set with its pinned hashes is reused; otherwise
+    (missing, damaged, altered, stale) the sets are generated, checked against the
+    manifest *before* writing, written atomically (a temp file renamed over the old
+    one) and read back and checked again; what was replaced, and why, is reported
+    through ``progress``. The check-and-write holds the split's lock, so concurrent
+    runs write each file once.
 
-    Returns ``{split: {"path": Path, "reused": bool, "sets": {set: hash}}}``.
+    Returns ``{split: {"path": Path, "reused": bool, "sets": {set: hash}, "replaced":
+    reason or None}}``.
+
+    Raises:
+        DataError: the generated numbers do not match the pins (nothing written).
+        StorageError: the file cannot be written (the message says why and what to do).
     """
     say = progress or log.info
     b = get_benchmark(benchmark)
+    if not b.generated:
+        raise DataError(
+            f"benchmark {benchmark!r} is imported, not generated: run `{rebuild_command(benchmark)}`"
+        )
     out: dict[str, dict[str, Any]] = {}
     for split in splits:
         check_split(split)
         path = set_file(benchmark, split, data_dir)
-        if not force and _file_is_right(path, benchmark, split):
+        for p in clean_stale_temps(path):
+            say(f"removed a dead writer's temporary file {p}")
+        why = None if force else _why_not_right(path, benchmark, split)
+        if not force and why is None:
             say(f"{path}: already up to date")
-            out[split] = {"path": path, "reused": True, "sets": _hashes(path, b.sets)}
+            out[split] = {
+                "path": path,
+                "reused": True,
+                "sets": _hashes(path, benchmark, split),
+                "replaced": None,
+            }
             continue
-        sets: dict[str, Examples] = {}
-        problems = []
-        for s in b.sets:
-            say(f"{benchmark} {split}: making set {s}")
-            ex = build_set(benchmark, split, s)
-            problem = check_against_manifest(benchmark, split, s, content_sha256(set_arrays(ex)))
-            if problem:
-                problems.append(problem)
-            sets[s] = ex
-        if problems:
-            raise DataError(
-                "generated data do not match the pinned hashes (nothing was written); this "
-                "machine's numpy produces different numbers, or the generator changed without "
-                "a version bump",
-                problems,
-            )
-        write_sets(path, sets, file_attrs={"benchmark": benchmark, "split": split})
-        if not _file_is_right(path, benchmark, split):
-            raise DataError(f"{path}: written file failed verification")
-        say(f"{path}: written and verified")
-        out[split] = {"path": path, "reused": False, "sets": _hashes(path, b.sets)}
+        with locked(path):
+            if not force:  # another process may have written it while we waited
+                why = _why_not_right(path, benchmark, split)
+                if why is None:
+                    say(f"{path}: already up to date")
+                    out[split] = {
+                        "path": path,
+                        "reused": True,
+                        "sets": _hashes(path, benchmark, split),
+                        "replaced": None,
+                    }
+                    continue
+            if why not in (None, "missing"):
+                say(f"replacing {path}: {why}")
+            out[split] = _write_generated(path, benchmark, split, say)
+            out[split]["replaced"] = None if why == "missing" else (why or "--force")
     return out
 
 
-def _hashes(path: Path, sets: Iterable[str]) -> dict[str, str]:
-    import h5py
+def _write_generated(path: Path, benchmark: str, split: str, say: Progress) -> dict[str, Any]:
+    sets: dict[str, Examples] = {}
+    digests: dict[str, str] = {}
+    problems = []
+    for s in get_benchmark(benchmark).sets:
+        say(f"{benchmark} {split}: making set {s}")
+        ex = build_set(benchmark, split, s)
+        attrs = group_attrs(ex, s, content_sha256(set_arrays(ex)))
+        digests[s] = attrs["content_sha256"]
+        problem = pin_problem(benchmark, split, s, attrs)
+        if problem:
+            problems.append(problem)
+        sets[s] = ex
+    if problems:
+        raise DataError(
+            "generated data do not match the pinned hashes (nothing was written); this "
+            "machine's numpy produces different numbers, or the generator changed without "
+            "a version bump",
+            problems,
+        )
+    write_sets(path, sets, file_attrs={"benchmark": benchmark, "split": split}, digests=digests)
+    why = _why_not_right(path, benchmark, split)
+    if why is not None:
+        raise DataError(f"{path}: written file failed verification: {why}")
+    say(f"{path}: written and verified")
+    return {"path": path, "reused": False, "sets": _hashes(path, benchmark, split)}
 
-    with h5py.File(path, "r") as f:
-        return {s: str(f[s].attrs["content_sha256"]) for s in sets}
+
+def _hashes(path: Path, benchmark: str, split: str) -> dict[str, str]:
+    return {s: pin(benchmark, split, s)["sha256"] for s in get_benchmark(benchmark).sets}
 
 
 def _path_for(split: str, benchmark: str, data_dir: str | os.PathLike[str] | None) -> Path:
     b = get_benchmark(benchmark)
     check_split(split)
     path = set_file(benchmark, split, data_dir)
-    if not path.exists():
+    if not path.exists() and not path.is_symlink():
         if b.generated:
             log.warning("%s is missing; generating %s %s first", path, benchmark, split)
             ensure_generated(benchmark, [split], data_dir)
         else:
-            raise DataError(
+            from odmd_bench.errors import MissingDataError
+
+            raise MissingDataError(
                 f"{benchmark} {split} is not in the data folder ({path} is missing); it is "
-                "imported, not generated: run `odmd-bench import PATH/TO/odmd-original` "
-                "(the original release's data folder) first"
+                f"imported, not generated: run `{rebuild_command(benchmark, data_dir)}` "
+                "(PATH/TO/odmd-original: the original release's data folder) first",
+                filename=str(path),
             )
     return path
 
@@ -162,8 +297,10 @@ def load(
     """The examples of one set, read from the data folder and verified.
 
     A generated benchmark that is missing is generated first (logged). The set's
-    content hash must match its file record and, for generated benchmarks, the pinned
-    manifest.
+    content and metadata hashes must match its file's records, the file must be the
+    one of ``benchmark``/``split`` (where it says), and a pinned set must match its
+    pins (docs/integrity.md). A file that fails is refused with the command that
+    rebuilds it; it is never used.
 
     Example:
         >>> ex = load("test", "robot")  # doctest: +SKIP
@@ -173,15 +310,7 @@ def load(
     b = get_benchmark(benchmark)
     check_set(b, set_name)
     path = _path_for(split, benchmark, data_dir)
-    ex = read_set(path, set_name)
-    if b.generated:
-        problem = check_against_manifest(benchmark, split, set_name, str(ex.attrs["content_sha256"]))
-        if problem:
-            raise DataError(
-                f"{path} is stale or altered; run `odmd-bench generate --benchmark {benchmark}` to rebuild it",
-                [problem],
-            )
-    return ex
+    return read_checked(path, benchmark, split, set_name, data_dir)
 
 
 def load_split(

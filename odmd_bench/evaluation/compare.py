@@ -31,7 +31,9 @@ from typing import Any
 import numpy as np
 
 from odmd_bench.errors import UsageError, ValidationError
-from odmd_bench.evaluation.scoring import EvaluationResult, evaluate
+from odmd_bench.evaluation.result import EvaluationResult
+from odmd_bench.evaluation.scoring import evaluate
+from odmd_bench.evaluation.source import Source
 
 A_BETTER = "A better"
 B_BETTER = "B better"
@@ -262,8 +264,8 @@ def compare_results(
 
 
 def compare_files(
-    path_a: str | os.PathLike[str],
-    path_b: str | os.PathLike[str],
+    path_a: Source,
+    path_b: Source,
     *,
     benchmark: str | None = None,
     data_dir: str | os.PathLike[str] | None = None,
@@ -271,11 +273,14 @@ def compare_files(
     n_resamples: int = 2000,
     seed: int = 0,
     confidence: float = 0.95,
+    names: tuple[str | None, str | None] = (None, None),
 ) -> tuple[Comparison, EvaluationResult, EvaluationResult]:
     """Validate and score two predictions files, then compare them.
 
     Both files are validated before anything is compared; a :class:`ValidationError`
-    names the problems of both, each line prefixed with ``A`` or ``B``.
+    names the problems of both, each line prefixed with ``A`` or ``B``. Each file is
+    a path, bytes or a binary file (see :func:`~odmd_bench.evaluation.scoring.evaluate`);
+    ``names`` name them in messages and provenance (default: the paths).
 
     Returns
     -------
@@ -283,11 +288,12 @@ def compare_files(
     """
     results: list[EvaluationResult] = []
     problems: list[str] = []
-    for label, path in (("A", path_a), ("B", path_b)):
+    for label, path, name in (("A", path_a, names[0]), ("B", path_b, names[1])):
         try:
-            results.append(evaluate(path, benchmark=benchmark, data_dir=data_dir, sets=sets))
+            results.append(evaluate(path, benchmark=benchmark, data_dir=data_dir, sets=sets, name=name))
         except ValidationError as e:
-            problems.extend(f"{label} ({path}): {p}" for p in (e.problems or [e.message]))
+            shown = name or (str(path) if isinstance(path, (str, os.PathLike)) else "<input>")
+            problems.extend(f"{label} ({shown}): {p}" for p in (e.problems or [e.message]))
     if problems:
         raise ValidationError("the predictions cannot be compared", problems)
     a, b = results

@@ -1,4 +1,4 @@
-"""The benchmark's metrics (CONTRACT section 5): pure functions over arrays.
+"""The benchmark's metrics (docs/format.md, "Metrics"): pure functions over arrays.
 
 ``*_error`` means lower is better. Every function checks its inputs the same way
 (:func:`check_depths`), returns new arrays or plain floats, and never changes its

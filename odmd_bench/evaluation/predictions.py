@@ -1,5 +1,8 @@
-"""Writing the predictions format (CONTRACT section 4). Reading and validating it is
-:mod:`odmd_bench.evaluation.scoring`'s job."""
+"""Writing the predictions format (docs/format.md, "Predictions").
+
+Reading it is :mod:`odmd_bench.evaluation.parse`'s job, checking it against the sets
+:mod:`odmd_bench.evaluation.coverage`'s.
+"""
 
 from __future__ import annotations
 

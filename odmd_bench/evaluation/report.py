@@ -3,7 +3,7 @@
 Scoring returns data (:mod:`odmd_bench.evaluation.scoring`, :mod:`odmd_bench.evaluation.compare`); this
 module only turns it into text: ``table`` (the layout of the paper's detailed tables:
 one row per set with mean, median, min, max and std of percent error and of absolute
-error, then ``All``), ``json`` (CONTRACT section 5), ``csv`` and ``markdown``. It also
+error, then ``All``), ``json`` (docs/format.md, "JSON output"), ``csv`` and ``markdown``. It also
 writes the per-example CSV (:func:`write_per_example`), atomically.
 """
 
@@ -18,29 +18,13 @@ from typing import Any
 
 import numpy as np
 
-from odmd_bench.data.examples import fill_missing
 from odmd_bench.data.io import atomic_write
 from odmd_bench.errors import UsageError
 from odmd_bench.evaluation.compare import Comparison, PairedDifference
 from odmd_bench.evaluation.metrics import STATS
-from odmd_bench.evaluation.scoring import EvaluationResult
+from odmd_bench.evaluation.result import PER_EXAMPLE_COLUMNS, EvaluationResult
 
 FORMATS: tuple[str, ...] = ("table", "json", "csv", "markdown")
-
-#: Columns of the per-example CSV, in order.
-PER_EXAMPLE_COLUMNS: tuple[str, ...] = (
-    "set",
-    "index",
-    "prediction",
-    "truth",
-    "percent_error",
-    "absolute_error",
-    "n_detected",
-    "camera_move",
-    "box_w",
-    "box_h",
-    "box_area_mean",
-)
 
 
 def _check_format(fmt: str) -> None:
@@ -140,9 +124,9 @@ def format_csv(result: EvaluationResult) -> str:
 
 
 def format_json(result: EvaluationResult) -> str:
-    """The JSON object of CONTRACT section 5 (keys ``benchmark``, ``split``, ``sets``,
-    ``all``, ``provenance``, plus ``warnings``)."""
-    return json.dumps(result.to_dict(), indent=2) + "\n"
+    """The JSON object of docs/format.md, "JSON output" (keys ``benchmark``, ``split``, ``sets``,
+    ``all``, ``provenance``, plus ``warnings``): strict JSON, never ``NaN`` or ``Infinity``."""
+    return json.dumps(result.to_dict(), indent=2, allow_nan=False) + "\n"
 
 
 _FORMATTERS: dict[str, Callable[[EvaluationResult], str]] = {
@@ -160,39 +144,8 @@ def format_result(result: EvaluationResult, fmt: str = "table") -> str:
 
 
 def per_example_rows(result: EvaluationResult) -> dict[str, np.ndarray]:
-    """The per-example columns (:data:`PER_EXAMPLE_COLUMNS`) as arrays, sets in order.
-
-    ``camera_move`` is ``|c_1 - c_n|``, the distance in metres between the first and the
-    last camera position. ``box_w`` and ``box_h`` are the last observation's box width
-    and height (divided by the image width and height), taken from the nearest
-    observation with a detection when the last has none (the shared missing-detection
-    rule; 0 when the example has no detection at all). ``box_area_mean`` is the mean of
-    ``w * h`` over the observations with a detection (0 when there is none).
-    """
-    parts: dict[str, list[np.ndarray]] = {c: [] for c in PER_EXAMPLE_COLUMNS}
-    for s in result.sets:
-        ex = result.examples[s]
-        pred = result.predictions[s]
-        truth = ex.depth
-        n = len(ex)
-        det = ex.detected
-        boxes = fill_missing(ex.boxes, det)
-        n_det = det.sum(axis=1)
-        last = np.where((n_det > 0)[:, None], boxes[:, -1, 2:4], 0.0)
-        area = ex.boxes[:, :, 2] * ex.boxes[:, :, 3]
-        area_mean = np.where(n_det > 0, (area * det).sum(axis=1) / np.maximum(n_det, 1), 0.0)
-        parts["set"].append(np.full(n, s, dtype=object))
-        parts["index"].append(np.arange(n))
-        parts["prediction"].append(pred)
-        parts["truth"].append(truth)
-        parts["absolute_error"].append(np.abs(truth - pred))
-        parts["percent_error"].append(np.abs(truth - pred) / truth * 100.0)
-        parts["n_detected"].append(n_det)
-        parts["camera_move"].append(np.linalg.norm(ex.camera[:, 0, :] - ex.camera[:, -1, :], axis=1))
-        parts["box_w"].append(last[:, 0])
-        parts["box_h"].append(last[:, 1])
-        parts["box_area_mean"].append(area_mean)
-    return {c: np.concatenate(v) if v else np.empty(0) for c, v in parts.items()}
+    """The per-example columns (:data:`PER_EXAMPLE_COLUMNS`); see :meth:`EvaluationResult.per_example`."""
+    return result.per_example()
 
 
 def format_per_example(result: EvaluationResult) -> str:
@@ -252,7 +205,7 @@ def format_comparison(c: Comparison, fmt: str = "table") -> str:
     if prov.get("a") and prov.get("b"):
         files = f"A = {prov['a'].get('predictions_file')}, B = {prov['b'].get('predictions_file')}"
     if fmt == "json":
-        return json.dumps(c.to_dict(), indent=2) + "\n"
+        return json.dumps(c.to_dict(), indent=2, allow_nan=False) + "\n"
     if fmt == "csv":
         buf = io.StringIO()
         writer = csv.writer(buf, lineterminator="\n")

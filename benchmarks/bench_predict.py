@@ -1,0 +1,83 @@
+"""``predict`` throughput: parsing a sequences CSV and solving Box_LS on it.
+
+Run (one core: keep OpenBLAS to one thread):
+
+    OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 .venv/bin/pytest benchmarks/bench_predict.py \\
+        --benchmark-only -p no:randomly --benchmark-columns=min,median,ops -s
+
+The file: 100,000 sequences of 10 observations (1,000,000 rows, about 90 MB) made from
+ODMD examples (preset odmd, perturbation both, seed 0), 2% of the boxes missed (and the
+few boxes of width or height <= 0 made by the box noise missed too), numbers written with ``repr`` precision (:func:`odmd_bench.data.pixels.format_sequences`).
+Rates are sequences per second = 100,000 / best time:
+
+* ``test_parse``: :func:`read_sequences` on the file's bytes, strict checks and
+  conversion to examples included (the vectorised path of a well-formed file);
+* ``test_parse_careful``: the same file with one blank line, which sends it through the
+  row-by-row reader that locates problems (what a file with a problem costs);
+* ``test_solve``: Box_LS (``predict_report``, fills and fallbacks included) on the
+  converted examples, the solve ``predict`` runs;
+* ``test_predict_sequences``: method lookup, solve and the per-sequence report.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+from odmd_bench_baselines import box_ls
+
+import odmd_bench
+from odmd_bench.data import pixels
+
+N = 100_000
+SIZE = (640, 480)
+
+
+@pytest.fixture(scope="module")
+def data() -> bytes:
+    ex = odmd_bench.generate(N, preset="odmd", perturbation="both", rng=0)
+    det = np.random.default_rng(0).random(ex.detected.shape) >= 0.02
+    # Box noise can make a tiny box's width negative, which no detector writes (and the
+    # reader refuses): such a box counts as missed too.
+    det &= (ex.boxes[:, :, 2] > 0) & (ex.boxes[:, :, 3] > 0)
+    ex = dataclasses.replace(ex, detected=det, boxes=np.where(det[..., None], ex.boxes, 0.0))
+    return pixels.format_sequences(ex).encode()
+
+
+@pytest.fixture(scope="module")
+def sequences(data: bytes) -> pixels.Sequences:
+    return pixels.read_sequences(data, SIZE)
+
+
+def _rate(benchmark: object) -> None:
+    stats = benchmark.stats.stats  # type: ignore[attr-defined]
+    benchmark.extra_info["sequences_per_second"] = N / stats.min  # type: ignore[attr-defined]
+    print(f"\n{N / stats.min:,.0f} sequences/s (best of {stats.rounds})")
+
+
+def test_parse(benchmark, data: bytes) -> None:
+    seqs = benchmark.pedantic(pixels.read_sequences, args=(data, SIZE), rounds=3, iterations=1)
+    assert len(seqs) == N and seqs.examples().n_obs == 10
+    benchmark.extra_info["megabytes"] = len(data) / 1e6
+    _rate(benchmark)
+
+
+def test_parse_careful(benchmark, data: bytes) -> None:
+    blank = data.replace(b"\n", b"\n\n", 1)
+    seqs = benchmark.pedantic(pixels.read_sequences, args=(blank, SIZE), rounds=1, iterations=1)
+    assert len(seqs) == N
+    _rate(benchmark)
+
+
+def test_solve(benchmark, sequences: pixels.Sequences) -> None:
+    ex = sequences.examples()
+    depth, _ = benchmark.pedantic(box_ls.predict_report, args=(ex,), rounds=10, iterations=1)
+    assert depth.shape == (N,)
+    _rate(benchmark)
+
+
+def test_predict_sequences(benchmark, sequences: pixels.Sequences) -> None:
+    result = benchmark.pedantic(pixels.predict_sequences, args=(sequences, "box-ls"), rounds=5, iterations=1)
+    assert result.depth.shape == (N,)
+    _rate(benchmark)

@@ -1,0 +1,147 @@
+"""``predict``: depths for a user's own detections and camera motion (a sequences CSV).
+
+The format and its conversion are :mod:`odmd_bench.data.pixels`'s; the method is any
+registered one (:mod:`odmd_bench.methods`).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import click
+
+#: The method-specific options, passed only to a method that takes them.
+OPTIONS = ("weights", "config", "mode")
+
+
+def default_output(source: str, method: str) -> Path:
+    """``<input name>-<method>.csv`` in the current folder (``depths-<method>.csv`` for stdin)."""
+    stem = "depths" if source == "-" else Path(source).name.removesuffix(".gz").removesuffix(".csv")
+    return Path(f"{stem}-{method}.csv")
+
+
+def error_summary(truth: Any, depth: Any) -> str:
+    """The error table of ``evaluate`` for the sequences whose true depth is known."""
+    import numpy as np
+
+    from odmd_bench.evaluation.metrics import STATS, set_metrics
+
+    known = np.isfinite(truth)
+    m = set_metrics(truth[known], depth[known])
+    lines = [
+        f"error against the true depths given ({m['n']} of {len(truth)} sequences):",
+        f"{'':20}" + "".join(f"{s:>9}" for s in STATS),
+        f"{'percent error (%)':20}" + "".join(f"{m['percent_error'][s]:9.2f}" for s in STATS),
+        f"{'absolute error (m)':20}" + "".join(f"{m['absolute_error'][s]:9.4f}" for s in STATS),
+    ]
+    return "\n".join(lines)
+
+
+@click.command()
+@click.argument("sequences", metavar="SEQUENCES.csv")
+@click.option(
+    "--method", "method_name", required=True, help="Registered method (odmd-bench baseline --list)."
+)
+@click.option(
+    "--image-size",
+    nargs=2,
+    type=click.FloatRange(min=0, min_open=True),
+    required=True,
+    metavar="W H",
+    help="Width and height in pixels of the images the boxes are in.",
+)
+@click.option(
+    "--intrinsics",
+    nargs=4,
+    type=float,
+    default=None,
+    metavar="FX FY CX CY",
+    help="Camera intrinsics in pixels (same pixel frame as the boxes); needed by parallax and robust.",
+)
+@click.option(
+    "-o",
+    "--output",
+    default=None,
+    help="Depths CSV to write; '-' for standard output (default: SEQUENCES-METHOD.csv here).",
+)
+@click.option(
+    "--weights",
+    type=click.Path(exists=True, dir_okay=False, path_type=Path),
+    default=None,
+    help="Checkpoint file, for the methods that load one.",
+)
+@click.option("--config", default=None, help="Named configuration, for the methods that have them (dbox).")
+@click.option("--mode", default=None, help="Mode, for the methods that have several (robust).")
+def predict(
+    sequences: str,
+    method_name: str,
+    image_size: tuple[float, float],
+    intrinsics: tuple[float, float, float, float] | None,
+    output: str | None,
+    weights: Path | None,
+    config: str | None,
+    mode: str | None,
+) -> None:
+    """Estimate the depth at the last observation of every sequence in SEQUENCES.csv.
+
+    One row per observation with the columns sequence, observation, x1, y1, x2, y2
+    (box corners in pixels; all four empty: missed detection), cam_x, cam_y, cam_z
+    (camera position in metres, camera axes, any fixed origin) and an optional depth
+    (the truth, metres). Observations are ordered by 'observation'; the last is
+    estimated. SEQUENCES.csv may be '-' (standard input). Writes sequence,depth,
+    observations,detections (and true_depth,percent_error where truth is given);
+    prints the error summary where truth is given. See docs/own-data.md.
+    """
+    import numpy as np
+
+    from odmd_bench import methods
+    from odmd_bench.data.io import atomic_write
+    from odmd_bench.data.pixels import format_depths, predict_sequences, read_sequences
+
+    method = methods.load(method_name)
+    given = {"weights": weights, "config": config, "mode": mode}
+    options: dict[str, Any] = {k: v for k, v in given.items() if v is not None}
+    methods.check_options(method, options, spell=lambda k: f"--{k}")
+
+    seqs = read_sequences(sequences, image_size, intrinsics)
+    result = predict_sequences(seqs, method, **options)
+    text = format_depths(result)
+    to_stdout = output == "-"
+    path = (
+        None if to_stdout else Path(output) if output is not None else default_output(sequences, method_name)
+    )
+    if path is None:
+        click.echo(text, nl=False)
+    else:
+        with atomic_write(path, "w") as fh:
+            fh.write(text)
+
+    def say(line: str) -> None:
+        click.echo(line, err=to_stdout)
+
+    lengths = np.unique(seqs.n_obs)
+    span = str(lengths[0]) if lengths.size == 1 else f"{lengths[0]}-{lengths[-1]}"
+    used = np.unique(result.observations)
+    chose = "" if np.array_equal(used, lengths) else f" ({used[0]} chosen evenly, the last kept)"
+    where = "standard output" if path is None else str(path)
+    say(
+        f"{result.method} on {seqs.source}: {len(seqs)} sequence{'' if len(seqs) == 1 else 's'} "
+        f"of {span} observations{chose}; "
+        f"depths written to {where}"
+    )
+    fallbacks = [f"{k} {v}" for k, v in result.counts.items() if isinstance(v, int) and v]
+    notes = [f"{k} {v}" for k, v in result.counts.items() if isinstance(v, str)]
+    say(f"  fallbacks: {', '.join(fallbacks) or 'none'}" + "".join(f"; {n}" for n in notes))
+    if seqs.ignored_columns:
+        say(f"  ignored columns: {', '.join(seqs.ignored_columns)}")
+    nonpositive = int((result.depth <= 0).sum())
+    if nonpositive:
+        say(
+            f"warning: {nonpositive} estimated depths are zero or negative (no valid solution for those sequences)"
+        )
+    if np.isfinite(result.truth).any():
+        say(error_summary(result.truth, result.depth))
+
+
+COMMANDS: list[click.Command] = [predict]

@@ -1,0 +1,58 @@
+"""The predictions format's columns: the header check and single-valued columns."""
+
+from __future__ import annotations
+
+from odmd_bench.evaluation.problems import Problems, closest, plural, show
+
+#: Columns every predictions file must have.
+REQUIRED_COLUMNS: tuple[str, ...] = ("split", "set", "index", "depth")
+#: Columns that are read when present; any other column is ignored.
+OPTIONAL_COLUMNS: tuple[str, ...] = ("benchmark",)
+#: Header cells a message lists at most.
+_HEADER_SHOWN = 12
+
+
+def check_header(header: list[str], problems: Problems) -> dict[str, int] | None:
+    """Column positions by name, or None (with ``problems`` added) when the header is wrong."""
+    cols: dict[str, int] = {}
+    for i, name in enumerate(header):
+        if name in cols:
+            problems.add(f"column {show(name)} appears more than once in the header")
+        else:
+            cols[name] = i
+    missing = [c for c in REQUIRED_COLUMNS if c not in cols]
+    if not missing:
+        return None if problems else cols
+    spare = [h for h in header if h not in REQUIRED_COLUMNS + OPTIONAL_COLUMNS][:100]
+    for c in missing:
+        near = closest(c, spare)
+        found = near[len("; did you mean ") : -1] if near else ""
+        problems.add(f"missing column {c!r}" + (f" (the header has {found}: misspelt?)" if found else ""))
+    if len(header) == 1:
+        for sep, name in ((";", "semicolons"), ("\t", "tabs"), ("|", "bars")):
+            if sep in header[0]:
+                problems.add(f"the header {show(header[0])} seems to use {name} as separator; use commas")
+                break
+    listed = ", ".join(show(h) for h in header[:_HEADER_SHOWN])
+    if len(header) > _HEADER_SHOWN:
+        listed += f", ... ({len(header) - _HEADER_SHOWN} more)"
+    problems.add(
+        f"the header is {listed}; expected the columns {', '.join(REQUIRED_COLUMNS)} "
+        f"(optional: {', '.join(OPTIONAL_COLUMNS)}; others are ignored)"
+    )
+    return None
+
+
+def single_value(tally: dict[str, list[int]], problems: Problems, what: str) -> str | None:
+    """The one valid value of a column, or None (a problem added when there are several).
+
+    Args:
+        tally: ``{value: [rows, first line]}`` of the valid values, in order of appearance.
+        problems: where a file holding several values is reported.
+        what: ``"split"`` or ``"benchmark"``.
+    """
+    if len(tally) > 1:
+        parts = [f"{v} ({plural(n, 'row')}, first on line {first})" for v, (n, first) in tally.items()]
+        problems.add(f"a file holds one {what}, this one has {len(tally)}: {', '.join(parts)}")
+        return None
+    return next(iter(tally), None)

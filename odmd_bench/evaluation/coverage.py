@@ -1,0 +1,171 @@
+"""Checking parsed predictions against the sizes of the sets: the second stage of evaluation.
+
+:func:`check_coverage` places each estimate at its index, and finds indices out of range
+and examples without a row. It reads no file: the sizes come from the caller (from the
+loaded sets in :func:`~odmd_bench.evaluation.scoring.evaluate`, from the leaderboard's
+sets, or from a test).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+
+from odmd_bench.data.registry import Benchmark, get_benchmark
+from odmd_bench.errors import UsageError
+from odmd_bench.evaluation.parse import ParsedPredictions
+from odmd_bench.evaluation.problems import SHOWN, Problems, clip, closest
+from odmd_bench.evaluation.result import Predictions
+
+
+def check_sets(sets: Sequence[str], bench: Benchmark) -> tuple[str, ...]:
+    """The sets asked for, checked, in the benchmark's order, each once.
+
+    Raises:
+        UsageError: no set named, or a set the benchmark does not have.
+    """
+    names = [s.strip() for s in sets if s.strip()]
+    if not names:
+        raise UsageError(f"no sets named; expected some of {', '.join(bench.sets)}")
+    unknown = [s for s in names if s not in bench.sets]
+    if unknown:
+        raise UsageError(
+            f"unknown set {unknown[0]!r} for benchmark {bench.name!r}; expected some of "
+            f"{', '.join(bench.sets)}{closest(unknown[0], bench.sets)}"
+        )
+    # Benchmark order, so that results do not depend on how --sets was typed.
+    return tuple(s for s in bench.sets if s in names)
+
+
+def nonpositive_warning(count: int, shown: Sequence[str]) -> str:
+    """The warning about zero or negative depths (legal estimates, scored as given)."""
+    more = f", ... ({count - len(shown)} more)" if count > len(shown) else ""
+    return clip(
+        f"{count} {'depth is' if count == 1 else 'depths are'} zero or negative "
+        f"(scored as given): {', '.join(shown)}{more}",
+        1000,
+    )
+
+
+def check_coverage(
+    parsed: ParsedPredictions,
+    sizes: Mapping[str, int],
+    *,
+    sets: Sequence[str] | None = None,
+) -> Predictions:
+    """Place parsed estimates by index and check that they cover every example once.
+
+    Args:
+        parsed: from :func:`~odmd_bench.evaluation.parse.parse_predictions`; problems it
+            kept (``strict=False``) are reported together with these.
+        sizes: ``{set: number of examples}`` of ``parsed.split``, for every set in scope.
+        sets: score only these sets (rows of others are ignored, with a warning);
+            default: every set of the benchmark must be covered.
+
+    Returns:
+        Validated predictions, ``depths[s][i]`` the estimate of example ``i`` of set ``s``.
+
+    Raises:
+        ValidationError: every problem found (the parser's and the coverage's).
+        UsageError: unknown ``sets``, or ``sizes`` missing a set in scope.
+    """
+    problems = parsed.problems.copy()
+    if parsed.benchmark is None or parsed.split is None:
+        if not problems:  # pragma: no cover - the parser records why
+            problems.add("the file's benchmark or split could not be determined")
+        raise problems.error(parsed.name)
+    bench = get_benchmark(parsed.benchmark)
+    scope = check_sets(sets, bench) if sets is not None else bench.sets
+    lacking = [s for s in scope if s not in sizes]
+    if lacking:
+        raise UsageError(f"no size given for the sets {', '.join(lacking)}")
+    code = {n: i for i, n in enumerate(parsed.set_names)}
+    size_of = np.full(len(parsed.set_names), -1, dtype=np.int64)
+    for s in scope:
+        if s in code:
+            size_of[code[s]] = int(sizes[s])
+    n_row = size_of[parsed.codes]
+    in_scope = n_row >= 0
+    out = in_scope & ((parsed.indices < 0) | (parsed.indices >= n_row))
+    _out_of_range(parsed, np.flatnonzero(out), n_row, problems)
+    placed = in_scope & ~out
+    depths = {
+        s: _place(parsed, placed, code.get(s, -1), int(sizes[s]), s, scope, bench, sets, problems)
+        for s in scope
+    }
+    if problems:
+        raise problems.error(parsed.name)
+    return Predictions(
+        path=parsed.name,
+        sha256=parsed.sha256,
+        benchmark=bench.name,
+        split=parsed.split,
+        depths=depths,
+        n_rows=parsed.n_rows,
+        ignored_columns=parsed.ignored_columns,
+        warnings=_warnings(parsed, placed, ~in_scope, scope),
+    )
+
+
+def _out_of_range(parsed: ParsedPredictions, rows: np.ndarray, n_row: np.ndarray, problems: Problems) -> None:
+    for r in rows[:SHOWN]:
+        s, i, n = parsed.set_names[parsed.codes[r]], parsed.indices[r], int(n_row[r])
+        problems.add(
+            "index out of range",
+            f"line {parsed.lines[r]} ({s} {i}; {s} has {n} examples, indices 0..{n - 1})",
+        )
+    if rows.size > SHOWN:
+        problems.add("index out of range", count=int(rows.size - SHOWN))
+
+
+def _place(
+    parsed: ParsedPredictions,
+    placed: np.ndarray,
+    code: int,
+    n: int,
+    s: str,
+    scope: tuple[str, ...],
+    bench: Benchmark,
+    sets: Sequence[str] | None,
+    problems: Problems,
+) -> np.ndarray:
+    """``(n,)`` the estimates of set ``s`` by index (NaN where missing); gaps are problems."""
+    depth = np.full(n, np.nan)
+    seen = np.zeros(n, dtype=bool)
+    mine = placed & (parsed.codes == code)
+    depth[parsed.indices[mine]] = parsed.depths[mine]
+    seen[parsed.indices[mine]] = True
+    gaps = np.flatnonzero(~seen)
+    if gaps.size == n:
+        hint = (
+            "it was named by --sets"
+            if sets is not None
+            else f"to score only some sets, name them, e.g. --sets {','.join(x for x in scope if x != s)}"
+        )
+        problems.add(f"set {s!r} of benchmark {bench.name!r} has no rows ({hint})")
+    elif gaps.size:
+        shown = ", ".join(str(i) for i in gaps[:SHOWN])
+        more = ", ..." if gaps.size > SHOWN else ""
+        problems.add(
+            f"{gaps.size} of the {n} examples of set {s!r} have no row (missing indices {shown}{more})"
+        )
+    return depth
+
+
+def _warnings(
+    parsed: ParsedPredictions, placed: np.ndarray, ignored: np.ndarray, scope: tuple[str, ...]
+) -> tuple[str, ...]:
+    out = []
+    count = int(np.count_nonzero(placed & (parsed.depths <= 0)))
+    if count:
+        first = sorted(x for s in scope for x in parsed.nonpositive.get(s, ()))
+        out.append(nonpositive_warning(count, [text for _, text in first[:SHOWN]]))
+    if ignored.any():
+        codes, first_row, counts = np.unique(parsed.codes[ignored], return_index=True, return_counts=True)
+        parts = ", ".join(
+            f"{parsed.set_names[c]} ({k} rows)"
+            for _, c, k in sorted(zip(first_row, codes, counts, strict=True))
+        )
+        out.append(f"ignored rows of sets not asked for: {parts}")
+    return tuple(out)

@@ -1,0 +1,81 @@
+"""Pass/fail rules for continuous integration: a ceiling on All, and no significant regression.
+
+Each rule returns whether it passed and the lines that say why; the command line prints
+them and exits 1 on a failure (``evaluate --max-all``, ``compare --fail-if-worse``).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+from odmd_bench.errors import UsageError
+from odmd_bench.evaluation.compare import A_BETTER, Comparison, PairedDifference
+from odmd_bench.evaluation.result import EvaluationResult
+
+
+def check_ceiling(ceiling: float) -> None:
+    """Raise :class:`~odmd_bench.errors.UsageError` unless ``ceiling`` is a finite number >= 0."""
+    if not math.isfinite(ceiling) or ceiling < 0:
+        raise UsageError(f"--max-all must be a finite number >= 0, got {ceiling}")
+
+
+def max_all_gate(result: EvaluationResult, ceiling: float) -> tuple[bool, str]:
+    """Whether All (mean of the sets' mean percent errors) is at most ``ceiling``, and why.
+
+    Examples:
+        >>> from odmd_bench.evaluation.result import EvaluationResult
+        >>> r = EvaluationResult("odmd-v1", "test", {}, 4.25, {})
+        >>> max_all_gate(r, 5.0)
+        (True, 'ok: All 4.25 is at most --max-all 5')
+        >>> max_all_gate(r, 4.0)[0]
+        False
+    """
+    check_ceiling(ceiling)
+    value = result.all_percent_error_mean
+    if value <= ceiling:
+        return True, f"ok: All {value:.2f} is at most --max-all {ceiling:g}"
+    return (
+        False,
+        f"fail: All {value:.2f} is above --max-all {ceiling:g} (mean percent error, lower is better)",
+    )
+
+
+def _because(name: str, d: PairedDifference, confidence: float) -> str:
+    # B - A: how many points of mean percent error the candidate adds.
+    return (
+        f"{name}: candidate - baseline = {-d.difference:+.2f} points of mean percent error, "
+        f"{confidence:.0%} interval [{-d.ci_high:+.2f}, {-d.ci_low:+.2f}], p = {d.p_value:.4f}"
+    )
+
+
+def fail_if_worse(c: Comparison, sets: Sequence[str] = ()) -> tuple[bool, list[str]]:
+    """Whether the candidate (B) is not significantly worse than the baseline (A).
+
+    Worse means the paired comparison's verdict is "A better" (the interval of
+    ``A - B`` below 0 and the sign-flip test's ``p < 1 - confidence``), on All or on
+    any of ``sets``.
+
+    Args:
+        c: the comparison, A = baseline, B = candidate.
+        sets: sets checked besides All.
+
+    Returns:
+        ``(passed, lines)``: one line per target checked, failures first.
+    """
+    unknown = [s for s in sets if s not in c.sets]
+    if unknown:
+        raise UsageError(
+            f"--fail-if-worse: set {unknown[0]!r} was not compared; compared: {', '.join(c.sets)}"
+        )
+    targets = [("All", c.all), *((s, c.sets[s]) for s in sets)]
+    worse = [(n, d) for n, d in targets if d.verdict == A_BETTER]
+    lines = [
+        f"fail: the candidate is significantly worse on {_because(n, d, c.confidence)}" for n, d in worse
+    ]
+    lines += [
+        f"ok: not significantly worse on {_because(n, d, c.confidence)}"
+        for n, d in targets
+        if d.verdict != A_BETTER
+    ]
+    return not worse, lines

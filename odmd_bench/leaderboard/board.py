@@ -1,0 +1,225 @@
+"""Scoring: each board's sets loaded once, every entry re-scored by the evaluator and ranked.
+
+:func:`score_predictions` is the one place that calls the evaluator.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+from odmd_bench.data.examples import Examples
+from odmd_bench.data.registry import get_benchmark, set_file
+from odmd_bench.errors import DataError, OdmdError, ValidationError
+from odmd_bench.evaluation.compare import PairedDifference
+from odmd_bench.evaluation.scoring import EvaluationResult
+from odmd_bench.leaderboard.entry import Entry
+from odmd_bench.leaderboard.files import discover, read_entry, read_predictions_bytes
+from odmd_bench.leaderboard.ranking import rank_groups
+from odmd_bench.leaderboard.specs import BOARDS, BoardSpec
+
+
+@dataclass(frozen=True)
+class Row:
+    """A re-scored entry on its board.
+
+    Attributes:
+        entry: the entry.
+        result: the evaluator's result (sets, All, provenance, per-example errors).
+        group: rank group (1 is best).
+        leader: method id of the group's leader (itself for the leader).
+        versus_leader, versus_previous: as in :class:`~odmd_bench.leaderboard.ranking.Ranked`.
+    """
+
+    entry: Entry
+    result: EvaluationResult
+    group: int = 0
+    leader: str = ""
+    versus_leader: PairedDifference | None = None
+    versus_previous: PairedDifference | None = None
+
+
+@dataclass(frozen=True)
+class Board:
+    """The ranked rows of one board; a board without entries has no rows and no data."""
+
+    spec: BoardSpec
+    sets_content_sha256: dict[str, str]
+    data_version: str
+    rows: tuple[Row, ...]
+
+    @property
+    def benchmark(self) -> str:
+        return self.spec.benchmark
+
+    @property
+    def split(self) -> str:
+        return self.spec.split
+
+    @property
+    def sets(self) -> tuple[str, ...]:
+        return self.spec.sets
+
+
+def data_version(examples: Mapping[str, Examples]) -> str:
+    """How the sets were made, e.g. ``generator v1 + imported robot`` or ``original release``."""
+    parts = []
+    gens = sorted(
+        {int(ex.attrs["generator_version"]) for ex in examples.values() if "generator_version" in ex.attrs}
+    )
+    if gens:
+        parts.append("generator " + ", ".join(f"v{g}" for g in gens))
+    imported = [s for s, ex in examples.items() if "generator_version" not in ex.attrs]
+    if imported and gens:
+        parts.append("imported " + ", ".join(imported))
+    elif imported:
+        parts.append("original release")
+    return " + ".join(parts)
+
+
+def load_board_data(
+    benchmark: str,
+    split: str,
+    data_dir: str | os.PathLike[str] | None = None,
+    original: str | os.PathLike[str] | None = None,
+) -> dict[str, Examples]:
+    """The sets of a board.
+
+    A generated benchmark is generated when missing; an imported one is imported from
+    ``original`` (the original release's folder) when missing and ``original`` is given.
+    """
+    from odmd_bench.data.store import load_split
+
+    b = get_benchmark(benchmark)
+    if not b.generated and original is not None and not set_file(benchmark, split, data_dir).exists():
+        from odmd_bench.data.importer import import_release
+
+        import_release(original, data_dir, benchmark=benchmark)
+    try:
+        return load_split(split, benchmark, data_dir)
+    except DataError as e:
+        if b.generated or original is not None:
+            raise
+        raise DataError(
+            e.message + " (or give the leaderboard command --original PATH, or set ODMD_ORIGINAL)",
+            e.problems,
+        ) from None
+
+
+def score_predictions(data: bytes, entry: Entry, examples: Mapping[str, Examples]) -> EvaluationResult:
+    """Validate and score an entry's predictions (the CSV's bytes) against its sets.
+
+    This is the one call into the evaluator.
+
+    Raises:
+        ValidationError: When the file fails the evaluator's validation, or holds
+            another split than the entry's.
+    """
+    from odmd_bench.evaluation.coverage import check_coverage
+    from odmd_bench.evaluation.parse import parse_predictions
+    from odmd_bench.evaluation.scoring import score
+
+    title = f"entry {entry.key}: {entry.predictions.name} fails validation"
+    name = entry.predictions.name.removesuffix(".gz")
+    try:
+        parsed = parse_predictions(data, name=name, benchmark=entry.benchmark, strict=False)
+    except ValidationError as e:
+        raise ValidationError(title, e.problems or [e.message]) from None
+    if parsed.split is not None and parsed.split != entry.split:
+        wrong = f"the file holds split {parsed.split!r} but the entry is for {entry.split!r}"
+        raise ValidationError(title, [wrong, *parsed.problems.lines()])
+    try:
+        preds = check_coverage(parsed, {s: len(ex) for s, ex in examples.items()})
+    except ValidationError as e:
+        raise ValidationError(title, e.problems or [e.message]) from None
+    return score(preds, examples)
+
+
+def score_entry(entry: Entry, examples: Mapping[str, Examples]) -> EvaluationResult:
+    """Check that the sets are those the entry was made for, then score its predictions.
+
+    Raises:
+        ValidationError: When the sets' content hashes differ from the entry's, or the
+            predictions cannot be read or fail validation.
+    """
+    problems = []
+    recorded = entry.meta.sets_content_sha256
+    for s, ex in examples.items():
+        now = str(ex.attrs.get("content_sha256", ""))
+        if recorded.get(s) != now:
+            problems.append(
+                f"the predictions were made for {entry.benchmark} {entry.split} {s} with content "
+                f"SHA-256 {str(recorded.get(s))[:16]}..., but that set now has {now[:16]}...: they are "
+                "for different data; make new predictions on the current sets (odmd-bench leaderboard add)"
+            )
+    if problems:
+        raise ValidationError(f"entry {entry.key}: predictions are for different data", problems)
+    return score_predictions(read_predictions_bytes(entry.predictions), entry, examples)
+
+
+def _problem_lines(err: OdmdError) -> list[str]:
+    return [err.message, *(f"  {p}" for p in err.problems)]
+
+
+def _score_board(
+    spec: BoardSpec,
+    entries: list[Entry],
+    data_dir: str | os.PathLike[str] | None,
+    original: str | os.PathLike[str] | None,
+    n_resamples: int | None,
+) -> tuple[Board | None, list[str]]:
+    """One board from its entries (an empty board needs no data)."""
+    if not entries:
+        return Board(spec, {}, "", ()), []
+    try:
+        examples = load_board_data(spec.benchmark, spec.split, data_dir, original)
+    except OdmdError as err:
+        keys = ", ".join(e.key for e in entries)
+        return None, [f"{spec.key} ({keys}): data cannot be loaded: {err.render()}"]
+    problems: list[str] = []
+    scored: dict[str, tuple[Entry, EvaluationResult]] = {}
+    for e in entries:
+        try:
+            scored[e.method] = (e, score_entry(e, examples))
+        except ValidationError as err:
+            problems += _problem_lines(err)
+    if not scored:
+        return None, problems
+    ranked = rank_groups({m: r.percent_errors() for m, (_, r) in scored.items()}, n_resamples=n_resamples)
+    rows = tuple(Row(*scored[x.key], x.group, x.leader, x.versus_leader, x.versus_previous) for x in ranked)
+    hashes = {s: str(ex.attrs["content_sha256"]) for s, ex in examples.items()}
+    return Board(spec, hashes, data_version(examples), rows), problems
+
+
+def collect(
+    root: str | os.PathLike[str],
+    data_dir: str | os.PathLike[str] | None = None,
+    original: str | os.PathLike[str] | None = None,
+    *,
+    n_resamples: int | None = None,
+) -> tuple[list[Board], list[str]]:
+    """Read, validate, score and rank every entry under ``root``.
+
+    Returns:
+        ``(boards, problems)``: every board of :data:`~odmd_bench.leaderboard.specs.BOARDS`
+        with the entries that passed, and one line per problem found (every entry is
+        looked at; nothing stops at the first problem).
+    """
+    root = Path(root)
+    problems: list[str] = []
+    entries: list[Entry] = []
+    for folder in discover(root):
+        try:
+            entries.append(read_entry(folder, root.parent))
+        except ValidationError as err:
+            problems += _problem_lines(err)
+    boards: list[Board] = []
+    for spec in BOARDS:
+        mine = [e for e in entries if (e.benchmark, e.split) == (spec.benchmark, spec.split)]
+        board, found = _score_board(spec, mine, data_dir, original, n_resamples)
+        problems += found
+        if board is not None:
+            boards.append(board)
+    return boards, problems

@@ -1,0 +1,188 @@
+"""``leaderboard check``: what differs between the committed files and a fresh build.
+
+Differences are named precisely: JSON by field path (list items by method or board),
+markdown tables by table, row and column, so that a changed digit reads as one line.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+from pathlib import Path
+
+from odmd_bench.errors import ValidationError
+from odmd_bench.leaderboard.files import JSON_FILE, MARKDOWN, README, stale_readme
+from odmd_bench.leaderboard.render import build
+
+#: Longest value a difference line shows.
+SHOWN_VALUE = 500
+
+
+def _v(value: object) -> str:
+    text = repr(value)
+    return text if len(text) <= SHOWN_VALUE else text[: SHOWN_VALUE - 3] + "..."
+
+
+def _json_label(node: object, i: int) -> str:
+    if isinstance(node, dict):
+        if "method" in node and isinstance(node["method"], str):
+            return node["method"]
+        if "benchmark" in node and "split" in node:
+            return f"{node['benchmark']} {node['split']}"
+    return str(i)
+
+
+def _flatten(node: object, prefix: str = "") -> dict[str, object]:
+    """``{path: leaf}``; list items are named by their method or benchmark when they have one."""
+    out: dict[str, object] = {}
+    if isinstance(node, dict):
+        for k, v in node.items():
+            out.update(_flatten(v, f"{prefix}.{k}" if prefix else str(k)))
+    elif isinstance(node, list) and node and all(isinstance(x, dict) for x in node):
+        for i, v in enumerate(node):
+            out.update(_flatten(v, f"{prefix}[{_json_label(v, i)}]"))
+    else:
+        out[prefix] = node
+    return out
+
+
+def diff_json(committed: str, built: str, name: str = JSON_FILE, limit: int = 20) -> list[str]:
+    """One line per field that differs: ``name: path: committed X, build writes Y``."""
+    try:
+        a = _flatten(json.loads(committed))
+    except (ValueError, RecursionError) as e:
+        why = "nested too deeply" if isinstance(e, RecursionError) else str(e)[:SHOWN_VALUE]
+        return [f"{name}: not valid JSON ({why}); run `odmd-bench leaderboard build`"]
+    b = _flatten(json.loads(built))
+    out = []
+    for k in [*a, *(k for k in b if k not in a)]:
+        if k not in b:
+            out.append(f"{name}: {k}: committed {_v(a[k])}, build does not write it")
+        elif k not in a:
+            out.append(f"{name}: {k}: missing, build writes {_v(b[k])}")
+        elif a[k] != b[k] or type(a[k]) is not type(b[k]):
+            out.append(f"{name}: {k}: committed {_v(a[k])}, build writes {_v(b[k])}")
+    if len(out) > limit:
+        out = [*out[:limit], f"{name}: ... and {len(out) - limit} more differences"]
+    return out
+
+
+def _table_context(lines: list[str], i: int) -> tuple[str, list[str]] | None:
+    """(section title, header cells) of the table that line ``i`` is in, if any."""
+    if not lines[i].startswith("|"):
+        return None
+    j = i
+    while j > 0 and lines[j - 1].startswith("|"):
+        j -= 1
+    header = _cells(lines[j])
+    title = ""
+    for k in range(j - 1, -1, -1):
+        if lines[k].startswith("#"):
+            title = lines[k].lstrip("#").strip()
+            break
+    return title, header
+
+
+def _cells(line: str) -> list[str]:
+    return [c.strip() for c in re.split(r"(?<!\\)\|", line.strip())[1:-1]]
+
+
+def _row_key(lines: list[str], i: int) -> tuple[str, str, list[str]] | None:
+    """(table title, row name, header) of a table's data row, or None for other lines."""
+    ctx = _table_context(lines, i)
+    if ctx is None:
+        return None
+    title, header = ctx
+    cells = _cells(lines[i])
+    if len(cells) != len(header) or cells == header or all(set(c) <= set("-: ") for c in cells):
+        return None
+    name = cells[1] if header[0] == "Group" and len(cells) > 1 else cells[0]
+    return title, re.sub(r"^\[(.*)\]\(.*\)$", r"\1", name), header
+
+
+def diff_markdown(committed: str, built: str, name: str = MARKDOWN, limit: int = 20) -> list[str]:
+    """One line per difference. Table rows are matched by table and row name (the method),
+    so a changed cell is named by table, row and column even when rows moved."""
+    import difflib
+
+    old, new = committed.splitlines(), built.splitlines()
+    out = []
+    sm = difflib.SequenceMatcher(a=old, b=new, autojunk=False)
+    for tag, i1, i2, j1, j2 in sm.get_opcodes():
+        if tag == "equal":
+            continue
+        old_rows = {k[:2]: (i, k[2]) for i in range(i1, i2) if (k := _row_key(old, i))}
+        new_rows = {k[:2]: (j, k[2]) for j in range(j1, j2) if (k := _row_key(new, j))}
+        matched = {k for k in old_rows if k in new_rows and old_rows[k][1] == new_rows[k][1]}
+        for (title, row), (i, header) in old_rows.items():
+            if (title, row) not in matched:
+                continue
+            j = new_rows[(title, row)][0]
+            for col, x, y in zip(header, _cells(old[i]), _cells(new[j]), strict=True):
+                if x != y:
+                    out.append(
+                        f"{name} line {i + 1}: table '{title}', row '{row}', column '{col}': "
+                        f"committed {_v(x)}, build writes {_v(y)}"
+                    )
+        rest_old = [i for i in range(i1, i2) if (k := _row_key(old, i)) is None or k[:2] not in matched]
+        rest_new = [j for j in range(j1, j2) if (k := _row_key(new, j)) is None or k[:2] not in matched]
+        if len(rest_old) == len(rest_new):  # lines changed in place
+            for i, j in zip(rest_old, rest_new, strict=True):
+                out.append(f"{name} line {i + 1}: committed {_v(old[i])}, build writes {_v(new[j])}")
+            continue
+        for i in rest_old:
+            out.append(f"{name} line {i + 1}: committed {_v(old[i])}, build does not write it")
+        for j in rest_new:
+            out.append(f"{name} line {i1 + 1}: missing, build writes {_v(new[j])}")
+    if len(out) > limit:
+        out = [*out[:limit], f"{name}: ... and {len(out) - limit} more differences"]
+    return out
+
+
+def check(
+    root: str | os.PathLike[str],
+    data_dir: str | os.PathLike[str] | None = None,
+    original: str | os.PathLike[str] | None = None,
+    *,
+    n_resamples: int | None = None,
+) -> list[str]:
+    """Everything that is wrong with the leaderboard folder, one line each (empty: all good).
+
+    Entry problems (metadata, data hashes, predictions) come first; when there are
+    none, the committed ``LEADERBOARD.md`` and ``leaderboard.json`` (and the summary
+    between the markers of ``../README.md``, where it has them) are compared with what
+    ``build`` would write now. The plot is not compared.
+
+    Args:
+        root: the leaderboard folder.
+        data_dir: the data folder (default: the package's).
+        original: the original release's folder, imported from when a set is missing.
+        n_resamples: resamples of the rank groups' comparison (default: the board's).
+    """
+    root = Path(root)
+    try:
+        built = build(root, data_dir, original, n_resamples=n_resamples)
+    except ValidationError as e:
+        return e.problems or [e.message]
+    problems = []
+    for name, text, differ in (
+        (MARKDOWN, built.markdown, diff_markdown),
+        (JSON_FILE, built.json_text, diff_json),
+    ):
+        path = root / name
+        if not path.is_file():
+            problems.append(f"{name} is missing; run `odmd-bench leaderboard build`")
+            continue
+        committed = path.read_text(encoding="utf-8")
+        if committed != text:
+            found = differ(committed, text, name)
+            problems.extend(found or [f"{name}: differs from what build writes (whitespace or line ends)"])
+    stale = stale_readme(root, built.readme_block)
+    if stale is not None:
+        _, committed, rebuilt = stale
+        found = diff_markdown(committed, rebuilt, README)
+        problems.extend(
+            found or [f"{README}: the leaderboard summary differs from what build writes (whitespace)"]
+        )
+    return problems

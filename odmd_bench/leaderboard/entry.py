@@ -1,0 +1,146 @@
+"""An entry: its metadata as :class:`EntryMeta`, validated on creation, and where it is.
+
+:func:`validate_meta` turns the parsed ``entry.yaml`` (or ``entry.json``) into an
+:class:`EntryMeta`, naming every problem at once; the rules are in
+:mod:`~odmd_bench.leaderboard.rules`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from odmd_bench.errors import ValidationError
+from odmd_bench.leaderboard.rules import (
+    ENTRY_FILES,
+    MAX_LENGTHS,
+    OPTIONAL_FIELDS,
+    REQUIRED_FIELDS,
+    code_problems,
+    content_problems,
+    field_problems,
+    folder_problems,
+    parse_date,
+    show,
+)
+
+__all__ = [
+    "ENTRY_FILES",
+    "MAX_LENGTHS",
+    "OPTIONAL_FIELDS",
+    "REQUIRED_FIELDS",
+    "Entry",
+    "EntryMeta",
+    "validate_meta",
+]
+
+
+@dataclass(frozen=True)
+class EntryMeta:
+    """An entry's checked metadata (the fields of :data:`REQUIRED_FIELDS` and ``notes``).
+
+    ``date`` is ``YYYY-MM-DD``; ``sets_content_sha256`` keeps the order it was written in.
+    """
+
+    method: str
+    name: str
+    description: str
+    paper: str
+    code: str
+    training_data: str
+    command: str
+    date: str
+    benchmark: str
+    split: str
+    sets_content_sha256: Mapping[str, str]
+    calibrated: bool
+    predictions: str
+    notes: str | None = field(default=None)
+
+    def __post_init__(self) -> None:
+        problems = content_problems(self.to_dict())
+        if problems:
+            raise ValidationError(f"entry metadata of {show(self.method)} is incomplete or wrong", problems)
+
+    def to_dict(self) -> dict[str, object]:
+        """The fields as a plain mapping, in the documented order (``notes`` only when set)."""
+        out: dict[str, object] = {k: getattr(self, k) for k in REQUIRED_FIELDS}
+        out["sets_content_sha256"] = dict(self.sets_content_sha256)
+        if self.notes is not None:
+            out["notes"] = self.notes
+        return out
+
+
+@dataclass(frozen=True)
+class Entry:
+    """One method's predictions on one board, with their metadata.
+
+    Attributes:
+        folder: the entry folder.
+        key: ``<method>/<benchmark>-<split>``, how messages name the entry.
+        meta: the checked metadata.
+        predictions: the predictions file.
+    """
+
+    folder: Path
+    key: str
+    meta: EntryMeta
+    predictions: Path
+
+    @property
+    def method(self) -> str:
+        return self.meta.method
+
+    @property
+    def benchmark(self) -> str:
+        return self.meta.benchmark
+
+    @property
+    def split(self) -> str:
+        return self.meta.split
+
+
+def validate_meta(
+    data: Mapping[str, object], *, method_folder: str, folder: str, repo: Path
+) -> tuple[EntryMeta | None, list[str]]:
+    """Check parsed metadata against every rule above, and against where it is.
+
+    Args:
+        data: the parsed document.
+        method_folder: the name of the method's folder (``entries/<method>/``).
+        folder: the name of the entry folder (``<benchmark>-<split>``).
+        repo: the repository root, where ``code`` paths are resolved.
+
+    Returns:
+        ``(EntryMeta, [])`` when it is good, else ``(None, problems)``, every problem
+        named once.
+    """
+    problems = content_problems(data)
+    problems += folder_problems(data, method_folder, folder)
+    if "code" not in field_problems(data)[1]:
+        problems += code_problems(data.get("code"), repo)
+    if problems:
+        return None, problems
+    text = {k: v for k in MAX_LENGTHS if isinstance(v := data.get(k), str)}
+    hashes = data["sets_content_sha256"]
+    day = parse_date(data["date"])[0]
+    if not isinstance(hashes, dict) or day is None:  # cannot happen: checked above
+        return None, ["sets_content_sha256 or date cannot be used"]
+    meta = EntryMeta(
+        method=text["method"],
+        name=text["name"],
+        description=text["description"],
+        paper=text["paper"],
+        code=text["code"],
+        training_data=text["training_data"],
+        command=text["command"],
+        date=day,
+        benchmark=text["benchmark"],
+        split=text["split"],
+        sets_content_sha256={str(s): str(h) for s, h in hashes.items()},
+        calibrated=data["calibrated"] is True,
+        predictions=text["predictions"],
+        notes=text.get("notes"),
+    )
+    return meta, []

@@ -1,0 +1,309 @@
+"""The generated texts: ``LEADERBOARD.md``, ``leaderboard.json`` and the README's summary block.
+
+:func:`build` computes them (nothing is written; :func:`~odmd_bench.leaderboard.files.write`
+writes them). Every function here is pure given the boards.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+from odmd_bench.data.registry import BENCHMARKS
+from odmd_bench.errors import ValidationError
+from odmd_bench.evaluation.compare import PairedDifference
+from odmd_bench.leaderboard.board import Board, Row, collect
+from odmd_bench.leaderboard.files import ENTRIES
+from odmd_bench.leaderboard.ranking import RANK_CONFIDENCE, RANK_SEED, resamples, rule
+from odmd_bench.leaderboard.reported import ReportedResult, read_reported
+from odmd_bench.leaderboard.specs import SET_TITLES
+
+#: Decimals kept for floats in leaderboard.json, so that the file does not depend on the
+#: last bit of a sum (which may differ between numpy builds).
+JSON_DECIMALS = 6
+
+
+@dataclass(frozen=True)
+class Built:
+    """What :func:`build` computes: the boards, the reported results and the three texts."""
+
+    boards: tuple[Board, ...]
+    reported: tuple[ReportedResult, ...]
+    markdown: str
+    json_text: str
+    readme_block: str
+
+
+def build(
+    root: str | os.PathLike[str],
+    data_dir: str | os.PathLike[str] | None = None,
+    original: str | os.PathLike[str] | None = None,
+    *,
+    n_resamples: int | None = None,
+) -> Built:
+    """Everything ``leaderboard build`` writes, computed (nothing is written).
+
+    Raises:
+        ValidationError: Naming every problem with the entries (metadata, data,
+            predictions) and with ``reported.yaml``.
+    """
+    n = resamples(n_resamples)
+    boards, problems = collect(root, data_dir, original, n_resamples=n)
+    reported: list[ReportedResult] = []
+    try:
+        reported = read_reported(root)
+    except ValidationError as e:
+        problems += [e.message, *(f"  {p}" for p in e.problems)]
+    if problems:
+        raise ValidationError("the leaderboard cannot be built", problems)
+    return Built(
+        boards=tuple(boards),
+        reported=tuple(reported),
+        markdown=render_markdown(boards, reported, n_resamples=n),
+        json_text=render_json(boards, reported, n_resamples=n),
+        readme_block=render_readme_block(boards),
+    )
+
+
+def _r(x: float) -> float:
+    v = round(float(x), JSON_DECIMALS)
+    return 0.0 if v == 0 else v  # no "-0.0"
+
+
+def _diff_dict(d: PairedDifference | None, a: str, b: str) -> dict[str, object] | None:
+    """The evaluator's comparison of ``a`` (the leader) and ``b`` (this row): ``a - b``."""
+    if d is None:
+        return None
+    return {
+        "a": a,
+        "b": b,
+        "difference_a_minus_b": _r(d.difference),
+        "ci_low": _r(d.ci_low),
+        "ci_high": _r(d.ci_high),
+        "p_value": _r(d.p_value),
+        "verdict": d.verdict,
+    }
+
+
+def _json_row(board: Board, pos: int, row: Row, previous_leader: str) -> dict[str, object]:
+    res = row.result
+    return {
+        "position": pos,
+        "group": row.group,
+        "method": row.entry.method,
+        "name": row.entry.meta.name,
+        "all": _r(res.all_percent_error_mean),
+        "sets": {
+            s: {
+                "n": int(m["n"]),
+                **{err: {k: _r(v) for k, v in m[err].items()} for err in ("percent_error", "absolute_error")},
+            }
+            for s, m in res.sets.items()
+        },
+        "group_leader": row.leader,
+        "versus_group_leader": _diff_dict(row.versus_leader, row.leader, row.entry.method),
+        "versus_previous_group_leader": _diff_dict(row.versus_previous, previous_leader, row.entry.method),
+        "warnings": list(res.warnings),
+        "entry": f"{ENTRIES}/{row.entry.key}",
+        "predictions_file": row.entry.predictions.name,
+        "predictions_csv_sha256": res.provenance["predictions_sha256"],
+        "predictions_rows": res.provenance["predictions_rows"],
+        "metadata": row.entry.meta.to_dict(),
+    }
+
+
+def render_json(
+    boards: Sequence[Board], reported: Sequence[ReportedResult], *, n_resamples: int | None = None
+) -> str:
+    """``leaderboard.json``: every board's rows with all metrics, metadata and provenance."""
+    out_boards = []
+    for bd in boards:
+        rows, previous_leader = [], ""
+        for pos, row in enumerate(bd.rows, 1):
+            if row.versus_previous is not None:
+                previous_leader = next(r.leader for r in bd.rows if r.group == row.group - 1)
+            rows.append(_json_row(bd, pos, row, previous_leader))
+        out_boards.append(
+            {
+                "benchmark": bd.benchmark,
+                "split": bd.split,
+                "data_version": bd.data_version if bd.rows else None,
+                "sets": list(bd.sets),
+                "sets_content_sha256": bd.sets_content_sha256,
+                "rows": rows,
+            }
+        )
+    out = {
+        "generated_by": "odmd-bench leaderboard build",
+        "metric": "percent_error (|Z - Z_hat| / Z * 100); all = mean of the sets' mean percent errors",
+        "float_decimals": JSON_DECIMALS,
+        "rank_groups": {
+            "rule": rule(n_resamples),
+            "n_resamples": resamples(n_resamples),
+            "seed": RANK_SEED,
+            "confidence": RANK_CONFIDENCE,
+        },
+        "boards": out_boards,
+        "reported": [r.to_dict() for r in reported],
+    }
+    return json.dumps(out, indent=2, sort_keys=False, ensure_ascii=False) + "\n"
+
+
+def _cell(text: str) -> str:
+    return str(text).replace("|", "\\|").replace("\n", " ")
+
+
+def _fmt(x: float) -> str:
+    s = f"{x:.2f}"
+    return "0.00" if s == "-0.00" else s
+
+
+def _table_head(head: Sequence[str], numeric: range) -> list[str]:
+    """A markdown table's header and alignment lines; columns in ``numeric`` align right."""
+    align = "|".join(" ---: " if i in numeric else " --- " for i in range(len(head)))
+    return ["| " + " | ".join(head) + " |", f"|{align}|"]
+
+
+def _empty(bd: Board) -> str:
+    return (
+        "No entries yet. Add one with `odmd-bench leaderboard add PREDS.csv "
+        f"--benchmark {bd.benchmark} --split {bd.split} ...` (see leaderboard/README.md)."
+    )
+
+
+def _vs_cell(row: Row) -> str:
+    vs = row.versus_leader
+    if vs is None:
+        return "best" if row.group == 1 else "group best"
+    # The evaluator reports leader - row; the table shows row - leader.
+    diff, lo, hi = (-v + 0.0 for v in (vs.difference, vs.ci_high, vs.ci_low))  # + 0.0: no -0
+    return f"{diff:+.2f} [{lo:+.2f}, {hi:+.2f}]".replace("-0.00", "+0.00")
+
+
+def _board_markdown(bd: Board) -> list[str]:
+    desc = BENCHMARKS[bd.benchmark].description
+    if not bd.rows:
+        return [f"## {bd.spec.key}", "", f"Data: {desc}.", "", _empty(bd), ""]
+    hashes = ", ".join(f"{s} `{h[:12]}`" for s, h in bd.sets_content_sha256.items())
+    lines = [
+        f"## {bd.spec.key}",
+        "",
+        f"Data: {desc}. Version: {bd.data_version}; content SHA-256 {hashes}.",
+        "",
+    ]
+    head = ["Group", "Method", *[SET_TITLES.get(s, s) for s in bd.sets], "All", "vs group best"]
+    head += ["Calibrated", "Trained on", "Data", "Date"]
+    lines += _table_head(head, range(2, 3 + len(bd.sets)))
+    for row in bd.rows:
+        res, meta = row.result, row.entry.meta
+        cells = [
+            str(row.group),
+            f"[{_cell(meta.name)}]({ENTRIES}/{row.entry.key}/)",
+            *[_fmt(res.sets[s]["percent_error"]["mean"]) for s in bd.sets],
+            f"**{_fmt(res.all_percent_error_mean)}**",
+            _vs_cell(row),
+            "yes" if meta.calibrated else "no",
+            _cell(meta.training_data),
+            f"{bd.benchmark} ({bd.data_version})",
+            meta.date,
+        ]
+        lines.append("| " + " | ".join(cells) + " |")
+    return [*lines, ""]
+
+
+def _reported_markdown(boards: Sequence[Board], reported: Sequence[ReportedResult]) -> list[str]:
+    rescored = {(r.entry.method, bd.benchmark, bd.split): r for bd in boards for r in bd.rows}
+    lines = [
+        "## Reported in papers (not reproducible here)",
+        "",
+        "**These numbers are copied from publications, not computed here**: no predictions are "
+        "available, so they are not re-scored, take no group and are not comparable by the paired "
+        "test. Where an entry above reproduces the method, its re-scored All is shown beside.",
+        "",
+    ]
+    for bench, split in sorted({(r.benchmark, r.split) for r in reported}):
+        rows = [r for r in reported if (r.benchmark, r.split) == (bench, split)]
+        inputs = any(r.input != "detection" for r in rows)
+        sets = BENCHMARKS[bench].sets
+        head = ["Method", *(["Input"] if inputs else []), *[SET_TITLES.get(s, s) for s in sets], "All"]
+        head += ["Trained on", "Source", "Re-scored here"]
+        lines += [f"### {bench} {split} (reported)", ""]
+        if inputs:
+            lines += [
+                "**Input**: *segmentation* methods take the original ODMS segmentation masks, not the "
+                "boxes the entries above are scored on; their numbers are not comparable with the entries.",
+                "",
+            ]
+        first = 2 if inputs else 1
+        lines += _table_head(head, range(first, first + len(sets) + 1))
+        for r in rows:
+            here = "-"
+            if r.entry:
+                match = rescored.get((r.entry, bench, split))
+                here = (
+                    f"{match.entry.meta.name}: {_fmt(match.result.all_percent_error_mean)}"
+                    if match is not None
+                    else f"no entry {r.entry} yet"
+                )
+            cells = [_cell(r.method), *([r.input] if inputs else []), *[_cell(r.sets[s]) for s in sets]]
+            cells += [_cell(r.all), _cell(r.training_data), _cell(r.source), _cell(here)]
+            lines.append("| " + " | ".join(cells) + " |")
+        lines.append("")
+    return lines
+
+
+def render_markdown(
+    boards: Sequence[Board], reported: Sequence[ReportedResult], *, n_resamples: int | None = None
+) -> str:
+    """``LEADERBOARD.md``: one ranked table per board, then the reported table."""
+    lines = [
+        "<!-- Generated by `odmd-bench leaderboard build`; do not edit. `odmd-bench leaderboard check` "
+        "(run by CI) fails when this file differs from a fresh build. -->",
+        "",
+        "# Leaderboard",
+        "",
+        "Mean percent error `|Z - Z_hat| / Z * 100` per test set (lower is better); **All** is the mean of "
+        "the four sets' means (the paper's \"All Sets\"). Every number is recomputed from the committed "
+        "predictions by the package's evaluator, on sets whose content SHA-256 each entry records; the "
+        "full statistics are in `leaderboard.json`.",
+        "",
+        f"**Group**: methods that cannot be told apart share a group. {rule(n_resamples)} "
+        "**vs group best** is that difference of All (this row minus the group's best row) with its 95% "
+        "bootstrap interval. **Calibrated**: uses the camera intrinsics.",
+        "",
+    ]
+    for bd in boards:
+        lines += _board_markdown(bd)
+    if reported:
+        lines += _reported_markdown(boards, reported)
+    return "\n".join(lines).rstrip("\n") + "\n"
+
+
+def render_readme_block(boards: Sequence[Board]) -> str:
+    """The README's summary: per board, group, method and mean percent error per set and All.
+
+    The lines between the README markers (:data:`~odmd_bench.leaderboard.files.README_START`
+    and ``README_END``), markers excluded.
+    """
+    lines: list[str] = []
+    for bd in boards:
+        if not bd.rows:
+            lines += [f"### {bd.spec.key}", "", _empty(bd), ""]
+            continue
+        head = ["Group", "Method", *[SET_TITLES.get(s, s) for s in bd.sets], "All", "Calibrated"]
+        lines += [f"### {bd.spec.key} ({bd.data_version})", ""]
+        lines += _table_head(head, range(2, 3 + len(bd.sets)))
+        for row in bd.rows:
+            res = row.result
+            cells = [
+                str(row.group),
+                _cell(row.entry.meta.name),
+                *[_fmt(res.sets[s]["percent_error"]["mean"]) for s in bd.sets],
+                f"**{_fmt(res.all_percent_error_mean)}**",
+                "yes" if row.entry.meta.calibrated else "no",
+            ]
+            lines.append("| " + " | ".join(cells) + " |")
+        lines.append("")
+    return "\n".join(lines).rstrip("\n") + "\n"

@@ -1,0 +1,235 @@
+"""The rules an entry's metadata must follow: its fields, their limits, and each check.
+
+Values from the document are shown in messages only as short quoted text (at most
+:data:`SHOWN_CHARS` characters) or by their kind ("a mapping"), never as a ``repr`` of
+parsed data.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import re
+from collections.abc import Mapping
+from pathlib import Path
+
+from odmd_bench.data.registry import BENCHMARKS, SPLITS
+from odmd_bench.leaderboard.specs import BOARDS
+
+#: Metadata files an entry folder may hold (exactly one of them).
+ENTRY_FILES: tuple[str, ...] = ("entry.yaml", "entry.json")
+#: Fields every entry must have: name -> what is expected.
+REQUIRED_FIELDS: dict[str, str] = {
+    "method": "the method's id (lowercase letters, digits, '.', '_', '-'), the same as its folder",
+    "name": "the name shown in the table",
+    "description": "one or two sentences",
+    "paper": "an http(s) link, or 'none'",
+    "code": "an http(s) link, or a path in this repository",
+    "training_data": "what it was trained or tuned on ('none' for analytical methods)",
+    "command": "the exact command that produced the predictions",
+    "date": "when the predictions were made, YYYY-MM-DD, not in the future",
+    "benchmark": f"one of {', '.join(BENCHMARKS)}",
+    "split": f"one of {', '.join(SPLITS)}",
+    "sets_content_sha256": "{set: SHA-256 of the set's content} for every set the predictions were made for",
+    "calibrated": "true if the method uses the camera intrinsics, else false",
+    "predictions": "the predictions file in the entry folder (.csv or .csv.gz)",
+}
+#: Fields an entry may have.
+OPTIONAL_FIELDS: dict[str, str] = {"notes": "anything else a reader should know"}
+#: Longest value of each text field, in characters.
+MAX_LENGTHS: dict[str, int] = {
+    "method": 40,
+    "name": 80,
+    "description": 500,
+    "paper": 300,
+    "code": 300,
+    "training_data": 500,
+    "command": 500,
+    "benchmark": 40,
+    "split": 40,
+    "predictions": 40,
+    "notes": 1000,
+}
+#: Text fields that must fit on one line (the others may hold newlines, no other control characters).
+ONE_LINE: frozenset[str] = frozenset({"method", "name", "paper", "code", "benchmark", "split", "predictions"})
+#: How many characters of a value a message shows.
+SHOWN_CHARS = 60
+
+_METHOD_ID = re.compile(r"[a-z0-9][a-z0-9._-]*")
+_SHA256 = re.compile(r"[0-9a-f]{64}")
+_DATE = re.compile(r"\d{4}-\d{2}-\d{2}")
+_URL = re.compile(r"https?://\S+")
+_CONTROL = re.compile(r"[\x00-\x09\x0b-\x1f\x7f]")
+
+
+def show(value: object) -> str:
+    """A value for a message: short quoted text, or its kind (never a repr of parsed data)."""
+    if isinstance(value, str):
+        return repr(value) if len(value) <= SHOWN_CHARS else repr(value[:SHOWN_CHARS]) + "..."
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, (int, float)):
+        return show(str(value))
+    kinds = {dict: "a mapping", list: "a list", _dt.date: "a date", type(None): "nothing"}
+    return next((k for t, k in kinds.items() if isinstance(value, t)), f"a {type(value).__name__}")
+
+
+def method_id_problems(method: str) -> list[str]:
+    """Why ``method`` is not a method id (empty when it is one)."""
+    if len(method) > MAX_LENGTHS["method"]:
+        return [
+            f"field 'method' is {len(method)} characters long; at most {MAX_LENGTHS['method']} are allowed"
+        ]
+    if not _METHOD_ID.fullmatch(method):
+        return [f"method {show(method)} must be lowercase letters, digits, '.', '_' or '-'"]
+    return []
+
+
+def latest_date() -> _dt.date:
+    """The latest date an entry may have: today anywhere on Earth (UTC+14)."""
+    return (_dt.datetime.now(_dt.timezone.utc) + _dt.timedelta(hours=14)).date()
+
+
+def field_problems(data: Mapping[str, object]) -> tuple[list[str], set[str]]:
+    """Unknown, missing, mistyped, too long or control-character fields; and the bad fields."""
+    problems: list[str] = []
+    bad: set[str] = set()
+    known = (*REQUIRED_FIELDS, *OPTIONAL_FIELDS)
+    for k in data:
+        if k not in known:
+            problems.append(
+                f"unknown field {show(k)}; the fields are {', '.join(REQUIRED_FIELDS)} "
+                f"(optional: {', '.join(OPTIONAL_FIELDS)})"
+            )
+    for k, what in REQUIRED_FIELDS.items():
+        v = data.get(k)
+        if v is None or (isinstance(v, str) and not v.strip()):
+            problems.append(f"missing field {k!r}: {what}")
+            bad.add(k)
+    for k, limit in MAX_LENGTHS.items():
+        v = data.get(k)
+        if v is None or k in bad:
+            continue
+        if not isinstance(v, str):
+            problems.append(f"field {k!r} must be text, got {show(v)}")
+        elif len(v) > limit:
+            problems.append(f"field {k!r} is {len(v)} characters long; at most {limit} are allowed")
+        elif _CONTROL.search(v) or (k in ONE_LINE and "\n" in v):
+            one = "line breaks or " if k in ONE_LINE else ""
+            problems.append(f"field {k!r} must not hold {one}control characters")
+        else:
+            continue
+        bad.add(k)
+    return problems, bad
+
+
+def _identity_problems(data: Mapping[str, object], bad: set[str]) -> list[str]:
+    """The method id, benchmark and split, and that they name a board."""
+    problems = []
+    method, bench, split = (data.get(k) if k not in bad else None for k in ("method", "benchmark", "split"))
+    if isinstance(method, str) and not _METHOD_ID.fullmatch(method):
+        problems.append(f"method {show(method)} must be lowercase letters, digits, '.', '_' or '-'")
+    if isinstance(bench, str) and bench not in BENCHMARKS:
+        problems.append(f"unknown benchmark {show(bench)}; expected one of {', '.join(BENCHMARKS)}")
+    if isinstance(split, str) and split not in SPLITS:
+        problems.append(f"unknown split {show(split)}; expected one of {', '.join(SPLITS)}")
+    if (
+        bench in BENCHMARKS
+        and split in SPLITS
+        and not any((b.benchmark, b.split) == (bench, split) for b in BOARDS)
+    ):
+        problems.append(
+            f"there is no board for {bench} {split}; the boards are {', '.join(b.key for b in BOARDS)}"
+        )
+    return problems
+
+
+def folder_problems(data: Mapping[str, object], method_folder: str, folder: str) -> list[str]:
+    """The folders ``entries/<method>/<benchmark>-<split>/`` an entry must be in."""
+    method, bench, split = (data.get(k) for k in ("method", "benchmark", "split"))
+    problems = []
+    if isinstance(method, str) and _METHOD_ID.fullmatch(method) and method != method_folder:
+        problems.append(f"method {show(method)} does not match its folder entries/{method_folder}/")
+    if bench in BENCHMARKS and split in SPLITS and folder != f"{bench}-{split}":
+        problems.append(
+            f"an entry for {bench} {split} must be in a folder named {bench}-{split}, not {folder}"
+        )
+    return problems
+
+
+def parse_date(value: object) -> tuple[str | None, list[str]]:
+    """The date as ``YYYY-MM-DD``, or the problem."""
+    if isinstance(value, _dt.date) and not isinstance(value, _dt.datetime):
+        day = value
+    elif isinstance(value, str) and _DATE.fullmatch(value):
+        try:
+            day = _dt.date.fromisoformat(value)
+        except ValueError:
+            return None, [f"date {show(value)} is not a date YYYY-MM-DD"]
+    else:
+        return None, [f"date {show(value)} is not a date YYYY-MM-DD"]
+    if day > latest_date():
+        return None, [f"date {day.isoformat()} is in the future; the predictions must already exist"]
+    return day.isoformat(), []
+
+
+def code_problems(code: object, repo: Path) -> list[str]:
+    """``code``: a link, or a path that exists inside ``repo`` once resolved (links followed)."""
+    if not isinstance(code, str) or _URL.fullmatch(code):
+        return []
+    top = repo.resolve()
+    target = (top / code).resolve()
+    if Path(code).is_absolute() or not target.is_relative_to(top):
+        return [f"code {show(code)} is a path outside the repository; give a link or a path in it"]
+    if not target.exists():
+        return [f"code {show(code)} is not {REQUIRED_FIELDS['code']} that exists"]
+    return []
+
+
+def _hash_problems(value: object, bench: object) -> list[str]:
+    """``sets_content_sha256``: exactly the benchmark's sets, each with 64 lowercase hex digits."""
+    if not isinstance(value, dict):
+        return [f"sets_content_sha256 must map each set to its SHA-256, got {show(value)}"]
+    problems = []
+    if isinstance(bench, str) and bench in BENCHMARKS:
+        sets = BENCHMARKS[bench].sets
+        missing = [s for s in sets if s not in value]
+        extra = [show(s) for s in value if s not in sets]
+        if missing:
+            problems.append(f"sets_content_sha256 lacks the sets {', '.join(missing)}")
+        if extra:
+            problems.append(
+                f"sets_content_sha256 names unknown sets {', '.join(extra)}; {bench} has {', '.join(sets)}"
+            )
+    for s, h in value.items():
+        if not isinstance(h, str) or not _SHA256.fullmatch(h):
+            problems.append(f"sets_content_sha256 of {show(s)} is not 64 lowercase hex digits: {show(h)}")
+    return problems
+
+
+def _predictions_problems(name: object) -> list[str]:
+    if not isinstance(name, str):
+        return []
+    if "/" in name or "\\" in name or name.startswith("."):
+        return [f"predictions {show(name)} must be a file name in the entry folder"]
+    if not name.endswith((".csv", ".csv.gz")):
+        return [f"predictions {show(name)} must be a .csv or .csv.gz file"]
+    return []
+
+
+def content_problems(data: Mapping[str, object]) -> list[str]:
+    """Every rule that depends on the metadata alone (not on where it is)."""
+    problems, bad = field_problems(data)
+    problems += _identity_problems(data, bad)
+    if "date" not in bad:
+        problems += parse_date(data["date"])[1]
+    calibrated = data.get("calibrated")
+    if calibrated is not None and not isinstance(calibrated, bool):
+        problems.append(f"calibrated must be true or false, got {show(calibrated)}")
+    paper = data.get("paper") if "paper" not in bad else None
+    if isinstance(paper, str) and paper != "none" and not _URL.fullmatch(paper):
+        problems.append(f"paper {show(paper)} is not {REQUIRED_FIELDS['paper']}")
+    if "sets_content_sha256" not in bad:
+        problems += _hash_problems(data["sets_content_sha256"], data.get("benchmark"))
+    if "predictions" not in bad:
+        problems += _predictions_problems(data["predictions"])
+    return problems

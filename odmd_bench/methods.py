@@ -1,0 +1,211 @@
+"""The depth-estimation methods, found as plug-ins.
+
+A method is registered by any installed distribution under the entry-point group
+``odmd_bench.methods``: the name is what ``odmd-bench baseline NAME`` takes, the value
+a module (or any object) with two functions::
+
+    predict(examples, **options) -> depths (N,)
+    predict_report(examples, **options) -> (depths (N,), {fallback: count, ...})
+
+A third-party package adds its method to the command line without touching this one,
+by declaring in its own ``pyproject.toml``::
+
+    [project.entry-points."odmd_bench.methods"]
+    my-method = "my_package.my_method"
+
+The library names no method itself. A method is imported only when it is loaded, so
+that the optional modules one needs (torch, say) are imported for it alone, and a
+missing one is a usage error naming the extra that installs it
+(:func:`odmd_bench.extras.missing_module_error`).
+
+Options (``weights=``, ``mode=``, ...) reach a method only if both its functions take
+that keyword (:meth:`Method.accepts`).
+"""
+
+from __future__ import annotations
+
+import inspect
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from importlib import metadata
+from typing import Any
+
+import numpy as np
+
+from odmd_bench.data.examples import Examples
+from odmd_bench.errors import UsageError
+from odmd_bench.extras import is_installed, missing_module_error
+
+#: The entry-point group methods are registered under.
+GROUP = "odmd_bench.methods"
+
+
+@dataclass(frozen=True)
+class Method:
+    """A loaded method.
+
+    Attributes:
+        name: its registered name.
+        target: where its entry point points (``module`` or ``module:attr``).
+        source: the distribution that registers it, with its version.
+        predict: ``predict(examples, **options) -> depths``.
+        predict_report: ``predict_report(examples, **options) -> (depths, counts)``.
+    """
+
+    name: str
+    target: str
+    source: str
+    predict: Callable[..., Any]
+    predict_report: Callable[..., Any]
+
+    def accepts(self, keyword: str) -> bool:
+        """Whether ``predict`` and ``predict_report`` both take ``keyword`` by name."""
+        return all(_takes(f, keyword) for f in (self.predict, self.predict_report))
+
+    def run(self, examples: Examples, **options: Any) -> tuple[np.ndarray, dict[str, int | str]]:
+        """Depths and the method's report for ``examples``, checked.
+
+        Args:
+            examples: the examples to estimate.
+            **options: keywords for ``predict_report``; each must be accepted.
+
+        Returns:
+            ``(depths, report)``: (N,) float64 finite depths, and the report: integers
+            (fallback counts; ``n``, where given, the number of examples) and strings
+            (what the method says of its run, e.g. which weights it loaded).
+
+        Raises:
+            UsageError: an option the method does not take, or an optional module it
+                needs is not installed (the message names the extra).
+            RuntimeError: the method broke its promise of one finite depth per example
+                (a bug of the method, named with its distribution).
+        """
+        refused = [k for k in options if not self.accepts(k)]
+        if refused:
+            raise UsageError(f"method {self.name!r} takes no option {', '.join(map(repr, refused))}")
+        try:
+            depths, counts = self.predict_report(examples, **options)
+        except ModuleNotFoundError as e:
+            raise _missing(e, self.name) from None
+        depths = np.asarray(depths, dtype=np.float64)
+        bug = f"method {self.name!r} ({self.target}, from {self.source})"
+        if depths.shape != (len(examples),):
+            raise RuntimeError(f"{bug} returned shape {depths.shape} for {len(examples)} examples")
+        if not np.isfinite(depths).all():
+            raise RuntimeError(f"{bug} returned {int((~np.isfinite(depths)).sum())} non-finite depths")
+        return depths, {str(k): v if isinstance(v, str) else int(v) for k, v in dict(counts).items()}
+
+
+def names() -> list[str]:
+    """The registered methods' names, sorted."""
+    return sorted({ep.name for ep in _entry_points()})
+
+
+def load(name: str) -> Method:
+    """The method registered as ``name``.
+
+    Args:
+        name: a registered name (:func:`names`).
+
+    Returns:
+        The loaded method.
+
+    Raises:
+        UsageError: no method, or more than one, is registered as ``name``; its module
+            cannot be imported (a missing optional module names the extra to install);
+            it lacks ``predict`` or ``predict_report``.
+    """
+    found = [ep for ep in _entry_points() if ep.name == name]
+    if not found:
+        known = ", ".join(names()) or "none"
+        raise UsageError(f"no method {name!r} is registered (group {GROUP}); registered: {known}")
+    if len(found) > 1:
+        raise UsageError(
+            f"method {name!r} is registered more than once; uninstall all but one",
+            [f"{ep.value} (from {_source(ep)})" for ep in found],
+        )
+    ep = found[0]
+    try:
+        obj = ep.load()
+    except ModuleNotFoundError as e:
+        raise _missing(e, name, ep.value.partition(":")[0]) from None
+    except Exception as e:
+        raise UsageError(
+            f"method {name!r} ({ep.value}, from {_source(ep)}) cannot be loaded: {type(e).__name__}: {e}"
+        ) from None
+    missing = [f for f in ("predict", "predict_report") if not callable(getattr(obj, f, None))]
+    if missing:
+        raise UsageError(
+            f"method {name!r} ({ep.value}, from {_source(ep)}) is not usable: it has no "
+            + " and no ".join(f"{f}()" for f in missing)
+        )
+    return Method(name, ep.value, _source(ep), obj.predict, obj.predict_report)
+
+
+def accepting(keyword: str) -> list[str]:
+    """The registered methods that take option ``keyword`` (those that load), sorted."""
+    taking = []
+    for name in names():
+        try:
+            if load(name).accepts(keyword):
+                taking.append(name)
+        except UsageError:
+            continue
+    return taking
+
+
+def check_options(method: Method, options: Mapping[str, Any], spell: Callable[[str], str] = str) -> None:
+    """Refuse every option ``method`` does not take, naming the methods that take each.
+
+    Args:
+        method: the method to run.
+        options: keyword -> value; keywords only, the values are not looked at.
+        spell: how an option is written for the user (``lambda k: "--" + k``).
+
+    Raises:
+        UsageError: one problem per refused option.
+    """
+    problems = []
+    for keyword in options:
+        if not method.accepts(keyword):
+            taking = accepting(keyword)
+            who = f"{', '.join(taking)} only" if taking else "no registered method"
+            problems.append(f"{spell(keyword)} applies to {who}, not to {method.name!r}")
+    if len(problems) == 1:
+        raise UsageError(problems[0])
+    if problems:
+        raise UsageError(f"options that {method.name!r} does not take", problems)
+
+
+def _entry_points() -> list[metadata.EntryPoint]:
+    return list(metadata.entry_points(group=GROUP))
+
+
+def _source(ep: metadata.EntryPoint) -> str:
+    dist = getattr(ep, "dist", None)
+    return f"{dist.metadata['Name']} {dist.version}" if dist is not None else "an unknown distribution"
+
+
+def _missing(error: ModuleNotFoundError, name: str, target: str = "") -> Exception:
+    """A module that is not installed as a usage error naming what provides it; a module
+    that is installed but failed to import is a bug, re-raised as it is."""
+    missing = error.name or ""
+    if target and (target + ".").startswith(missing + "."):
+        return UsageError(f"method {name!r} is not available: its module {target} is not installed")
+    if missing and not is_installed(missing):
+        return missing_module_error(error, f"method {name!r}")
+    return error
+
+
+def _takes(function: Callable[..., Any], keyword: str) -> bool:
+    try:
+        parameters = inspect.signature(function).parameters.values()
+    except (TypeError, ValueError):
+        return False
+    return any(
+        (p.name == keyword and p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)) or p.kind is p.VAR_KEYWORD
+        for p in parameters
+    )
+
+
+__all__ = ["GROUP", "Method", "accepting", "check_options", "load", "names"]

@@ -1,0 +1,182 @@
+#!/usr/bin/env bash
+# The wheel users install, tested as they get it (called by scripts/check.sh, so CI runs it):
+#   1. build it from the tracked and not-ignored files (no stale build/ folder can leak in);
+#   2. check what it holds: odmd_bench and odmd_bench_baselines only (nothing of tests/,
+#      leaderboard/ or benchmarks/), every .py file of odmd_bench/ and baselines/, and torch
+#      and matplotlib required by extras only;
+#   3. install it into a fresh venv, and from a folder outside the repository, with a data
+#      folder of its own, run generate, baseline box-ls and dbox, evaluate and import;
+#   4. install it into a second venv where torch and matplotlib cannot be imported: generate,
+#      box-ls, evaluate, compare, import and the leaderboard check run, and `baseline dbox`
+#      exits 2 naming the extra to install.
+# The venvs reuse the dependencies already installed in the running Python's environment
+# (a .pth file pointing at its site-packages) and install the wheel with --no-deps: nothing
+# is downloaded. The original release ($ODMD_ORIGINAL, default ../shared/odmd-original)
+# is needed for import and the leaderboard check: in CI (CI=true) it must be there, elsewhere
+# those steps are skipped with a line.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+repo=$PWD
+py=$(command -v python)
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+start=$SECONDS
+original="${ODMD_ORIGINAL:-../shared/odmd-original}"
+if [ -d "$original" ]; then
+    original=$(cd "$original" && pwd)
+elif [ "${CI:-}" = "true" ]; then
+    echo "check_wheel: the original ODMD release is not at $original; CI must have it" >&2
+    exit 1
+else
+    original=""
+fi
+
+fail() {
+    echo "check_wheel: FAILED: $*" >&2
+    exit 1
+}
+
+# --- 1. build ----------------------------------------------------------------------------
+mkdir "$work/src"
+git rev-parse --git-dir >/dev/null 2>&1 || fail "not a git checkout: the wheel is built from the files git lists"
+git ls-files -z --cached --others --exclude-standard \
+    | while IFS= read -r -d '' f; do [ -f "$f" ] && printf '%s\0' "$f"; done \
+    | tar --null -T - -cf - | tar -xf - -C "$work/src"
+# The running environment's setuptools builds it when recent enough (no download).
+isolation=()
+if "$py" -c 'import setuptools, sys; sys.exit(int(setuptools.__version__.split(".")[0]) < 77)' 2>/dev/null; then
+    isolation=(--no-build-isolation)
+fi
+"$py" -m pip wheel -q --no-deps "${isolation[@]}" "$work/src" -w "$work/dist" >"$work/build.log" 2>&1 \
+    || { cat "$work/build.log" >&2; fail "the wheel does not build"; }
+wheel=$(ls "$work"/dist/*.whl)
+
+# --- 2. what it holds ----------------------------------------------------------------------
+"$py" - "$wheel" "$work/src" <<'EOF' || fail "the wheel's contents (above)"
+import re
+import sys
+import textwrap
+import zipfile
+from pathlib import Path
+
+wheel, src = sys.argv[1], Path(sys.argv[2])
+with zipfile.ZipFile(wheel) as z:
+    names = set(z.namelist())
+    meta = next(n for n in names if n.endswith(".dist-info/METADATA"))
+    metadata = z.read(meta).decode()
+    entry_points = z.read(meta.replace("METADATA", "entry_points.txt")).decode()
+tops: dict[str, list[str]] = {}
+for n in sorted(names):
+    top, _, rest = n.partition("/")
+    tops.setdefault(top, []).append(rest)
+print(f"{Path(wheel).name}: {len(names)} files")
+for top, files in tops.items():
+    print(textwrap.fill(" ".join(files), 100, initial_indent=f"  {top}/ ({len(files)}): ", subsequent_indent="      "))
+problems = []
+stray = sorted(t for t in tops if t not in ("odmd_bench", "odmd_bench_baselines") and not t.endswith(".dist-info"))
+if stray:
+    problems.append(f"top-level entries other than the two packages: {', '.join(stray)}")
+for folder in ("tests", "leaderboard", "benchmarks", "baselines", "splits"):
+    if any(n.startswith(folder + "/") for n in names):
+        problems.append(f"the repository's {folder}/ is in the wheel")
+# Where each source folder lands in the wheel (pyproject's package-dir).
+where = {"odmd_bench": "odmd_bench", "baselines": "odmd_bench_baselines", "splits": "odmd_bench/splits"}
+missing = [
+    str(p.relative_to(src))
+    for folder in where
+    for p in sorted((src / folder).rglob("*.py"))
+    if f"{where[folder]}/{p.relative_to(src / folder).as_posix()}" not in names
+]
+if missing:
+    problems.append(f"{len(missing)} .py files are not in the wheel: {', '.join(missing)}")
+requires = re.findall(r"^Requires-Dist: (.*)$", metadata, flags=re.M)
+for req in requires:
+    name = re.match(r"[A-Za-z0-9._-]+", req).group(0).lower()
+    if name in ("torch", "matplotlib") and "extra ==" not in req:
+        problems.append(f"{name} is required without an extra: {req}")
+print("Requires-Dist:", "; ".join(requires))
+methods = re.search(r"^\[odmd_bench\.methods\]\n((?:.+\n?)*)", entry_points, flags=re.M)
+print("methods:", ", ".join(line.split("=")[0].strip() for line in methods.group(1).splitlines()) if methods else "none")
+if not methods:
+    problems.append("no entry points in the group odmd_bench.methods")
+for p in problems:
+    print(f"  PROBLEM: {p}", file=sys.stderr)
+sys.exit(1 if problems else 0)
+EOF
+
+# --- 3. installed apart, run from elsewhere --------------------------------------------------
+deps=$("$py" -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])')
+make_venv() {  # make_venv DIR [BLOCKED_MODULE...]: a venv with the wheel, deps from $deps
+    local dir=$1
+    shift
+    "$py" -m venv "$dir"
+    local sp
+    sp=$("$dir/bin/python" -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])')
+    echo "$deps" >"$sp/deps.pth"
+    if [ $# -gt 0 ]; then  # a .pth line runs at start-up: these modules cannot be imported
+        printf 'import sys; sys.modules.update(dict.fromkeys((%s)))\n' "$(printf '"%s",' "$@")" >"$sp/blocked.pth"
+    fi
+    "$dir/bin/python" -m pip install -q --no-deps --ignore-installed "$wheel" >"$work/install.log" 2>&1 \
+        || { cat "$work/install.log" >&2; fail "the wheel does not install into $dir"; }
+}
+make_venv "$work/full"
+make_venv "$work/base" torch matplotlib
+mkdir "$work/run"
+cd "$work/run"  # outside the repository: only the installed wheel can be imported
+export ODMD_BENCH_DATA="$work/data"
+unset PYTHONPATH
+
+run() {  # run VENV ARGS...: odmd-bench of that venv, its output kept on failure
+    local venv=$1
+    shift
+    echo "  [$venv] odmd-bench $*"
+    "$work/$venv/bin/odmd-bench" "$@" >"$work/out" 2>&1 || { cat "$work/out" >&2; fail "[$venv] odmd-bench $*"; }
+}
+
+where=$("$work/full/bin/python" -c 'import odmd_bench, odmd_bench_baselines; print(odmd_bench.__file__, odmd_bench_baselines.__file__)')
+case "$where" in
+    "$work/full/"*" $work/full/"*) ;;
+    *) fail "the venv imports odmd-bench from elsewhere: $where" ;;
+esac
+echo "installed wheel, full (torch and matplotlib from the running environment):"
+run full --version
+run full generate --split test
+run full baseline box-ls -o box.csv
+run full baseline dbox -o dbox.csv
+run full evaluate box.csv
+run full evaluate dbox.csv
+if [ -n "$original" ]; then
+    run full import "$original"
+else
+    echo "  SKIPPED import: the original ODMD release is not at ${ODMD_ORIGINAL:-../shared/odmd-original} (set ODMD_ORIGINAL); CI runs it"
+fi
+
+echo "installed wheel, base (torch and matplotlib cannot be imported):"
+"$work/base/bin/python" -c 'import sys
+for m in ("torch", "matplotlib"):
+    try:
+        __import__(m)
+    except ImportError:
+        continue
+    sys.exit(m + " can be imported")' || fail "the base venv can import torch or matplotlib"
+rm -rf "$ODMD_BENCH_DATA/odmd-v1"  # generated again, without torch
+run base generate --split test
+run base baseline box-ls -o box-base.csv
+cmp -s box.csv box-base.csv || fail "box-ls gives other predictions without torch"
+run base evaluate box-base.csv
+run base compare box.csv dbox.csv
+if [ -n "$original" ]; then
+    run base import "$original" --data-dir "$work/data-base"
+    run base leaderboard check --root "$repo/leaderboard" --original "$original"
+else
+    echo "  SKIPPED leaderboard check: no original release (see above)"
+fi
+echo "  [base] odmd-bench baseline dbox (must exit 2 naming the extra)"
+set +e
+"$work/base/bin/odmd-bench" baseline dbox -o dbox-base.csv >"$work/out" 2>&1
+status=$?
+set -e
+grep -qF "pip install 'odmd-bench[dbox]'" "$work/out" && [ $status -eq 2 ] && [ ! -e dbox-base.csv ] \
+    || { cat "$work/out" >&2; fail "[base] baseline dbox exited $status, without naming the [dbox] extra"; }
+sed 's/^/    /' "$work/out"
+echo "check_wheel: OK ($((SECONDS - start)) s)"

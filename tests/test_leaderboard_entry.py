@@ -1,0 +1,241 @@
+"""Entry metadata and the hardening of what an entry may hold: bounded YAML without
+aliases, no symbolic links, code paths inside the repository, dates, bounded text."""
+
+from __future__ import annotations
+
+import datetime as dt
+import json
+import resource
+from pathlib import Path
+
+import pytest
+import yaml
+
+from odmd_bench import leaderboard as lb
+from odmd_bench.errors import ValidationError
+from odmd_bench.leaderboard import safeyaml
+from odmd_bench.leaderboard.entry import MAX_LENGTHS, EntryMeta
+from odmd_bench.leaderboard.rules import latest_date
+
+SETS = ("normal", "camera", "object", "robot")
+BOMB = (
+    "a: &a [lol, lol, lol, lol, lol, lol, lol, lol, lol]\n"
+    + "".join(
+        f"{c}: &{c} [{', '.join([f'*{p}'] * 9)}]\n" for p, c in zip("abcdefgh", "bcdefghi", strict=True)
+    )
+    + "method: *i\n"
+)
+
+
+def _good_meta(**over: object) -> dict[str, object]:
+    meta: dict[str, object] = {
+        "method": "m",
+        "name": "M",
+        "description": "d",
+        "paper": "none",
+        "code": "https://example.org",
+        "training_data": "none",
+        "command": "cmd",
+        "date": "2026-01-02",
+        "benchmark": "odmd-v1",
+        "split": "test",
+        "calibrated": True,
+        "sets_content_sha256": {s: "a" * 64 for s in SETS},
+        "predictions": "predictions.csv",
+    }
+    return meta | over
+
+
+def _repo(tmp_path: Path) -> Path:
+    """A repository with a code folder and an entry folder; returns the entry folder."""
+    (tmp_path / "baselines").mkdir(parents=True, exist_ok=True)
+    (tmp_path / "baselines" / "m.py").write_text("")
+    folder = tmp_path / "leaderboard" / lb.ENTRIES / "m" / "odmd-v1-test"
+    folder.mkdir(parents=True)
+    (folder / "predictions.csv").write_text("split,set,index,depth\n")
+    return folder
+
+
+def _write(folder: Path, meta: dict[str, object]) -> Path:
+    (folder / "entry.yaml").write_text(yaml.safe_dump(meta))
+    return folder
+
+
+def _problems(folder: Path) -> str:
+    with pytest.raises(ValidationError) as info:
+        lb.read_entry(folder)
+    return info.value.render()
+
+
+# ----------------------------------------------------------------------------- YAML
+
+
+def test_the_bomb_is_small_and_would_expand_to_a_billion_items() -> None:
+    assert len(BOMB) < 1024 and BOMB.count("&") == 9  # 9 ** 9 = 387,420,489 leaves
+
+
+def test_an_alias_bomb_is_a_clear_error_without_expanding(tmp_path: Path) -> None:
+    folder = _repo(tmp_path)
+    (folder / "entry.yaml").write_text(BOMB)
+    soft, hard = resource.getrlimit(resource.RLIMIT_AS)
+    cap = 2 * 2**30  # 2 GiB: the expanded bomb needs far more
+    resource.setrlimit(resource.RLIMIT_AS, (cap if hard == resource.RLIM_INFINITY else min(cap, hard), hard))
+    try:
+        text = _problems(folder)
+    finally:
+        resource.setrlimit(resource.RLIMIT_AS, (soft, hard))
+    assert "entry.yaml cannot be read: line 1: YAML anchors (&name) are not allowed" in text
+    assert "lol" not in text and len(text) < 300
+
+
+@pytest.mark.parametrize(
+    ("doc", "expected"),
+    [
+        ("method: *x\n", "YAML aliases (*name) are not allowed"),
+        ("base: &b {a: 1}\nother:\n  <<: *b\n", "YAML anchors (&name) are not allowed"),
+        ("a: " + "[" * 12 + "]" * 12 + "\n", "nested more than 8 levels deep"),
+        ("a: !!python/object/apply:os.system [echo]\n", "could not determine a constructor"),
+        ("a: 1\n---\nb: 2\n", "expected a single document"),
+        ("a: " + "x" * (70 * 1024) + "\n", "bytes; at most 65536 are read"),
+    ],
+)
+def test_unsafe_yaml_is_refused_by_line_and_reason(doc: str, expected: str) -> None:
+    with pytest.raises(safeyaml.DocumentError, match=None) as info:
+        safeyaml.load_document(doc.encode(), "yaml")
+    assert expected in str(info.value) and len(str(info.value)) < 200
+
+
+def test_deep_json_is_refused_without_a_recursion_error() -> None:
+    for depth in (12, 30_000):
+        with pytest.raises(safeyaml.DocumentError, match="nested more than 8 levels deep"):
+            safeyaml.load_document(b"[" * depth + b"]" * depth, "json")
+
+
+def test_plain_yaml_and_json_are_read() -> None:
+    assert safeyaml.load_document(b"a: [1, {b: x}]\n", "yaml") == {"a": [1, {"b": "x"}]}
+    assert safeyaml.load_document(b'{"a": [1]}', "json") == {"a": [1]}
+    assert safeyaml.load_document(b"", "yaml") is None
+
+
+def test_a_mapping_value_is_shown_by_its_kind_never_expanded(tmp_path: Path) -> None:
+    folder = _write(_repo(tmp_path), _good_meta(name={"x": ["secret"] * 50}, calibrated=[1, 2]))
+    text = _problems(folder)
+    assert "field 'name' must be text, got a mapping" in text
+    assert "calibrated must be true or false, got a list" in text
+    assert "secret" not in text
+
+
+# ----------------------------------------------------------------------------- symbolic links
+
+
+def test_a_linked_predictions_file_is_refused_without_reading_it(tmp_path: Path) -> None:
+    folder = _write(_repo(tmp_path), _good_meta())
+    secret = tmp_path / "secret.txt"
+    secret.write_text("root:x:0:0:the first line\n")
+    (folder / "predictions.csv").unlink()
+    (folder / "predictions.csv").symlink_to(secret)
+    text = _problems(folder)
+    assert "symbolic links are not allowed" in text
+    assert "m/odmd-v1-test/predictions.csv is a symbolic link" in text
+    assert "root:x" not in text and str(secret) not in text
+
+
+@pytest.mark.parametrize("which", ["entry.yaml", "folder", "method", "nested"])
+def test_a_link_anywhere_in_an_entry_is_refused(tmp_path: Path, which: str) -> None:
+    folder = _write(_repo(tmp_path), _good_meta())
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    if which == "entry.yaml":
+        (elsewhere / "entry.yaml").write_text((folder / "entry.yaml").read_text())
+        (folder / "entry.yaml").unlink()
+        (folder / "entry.yaml").symlink_to(elsewhere / "entry.yaml")
+        target = folder
+    elif which == "folder":
+        target = folder.parent / "odmd-paper-test"
+        target.symlink_to(folder)
+    elif which == "method":
+        target = folder.parents[1] / "other"
+        target.symlink_to(folder.parent)
+    else:
+        (folder / "sub").mkdir()
+        (folder / "sub" / "link").symlink_to(elsewhere)
+        target = folder
+    assert target in lb.discover(tmp_path / "leaderboard") or which == "nested"
+    text = _problems(target)
+    assert "is a symbolic link" in text and str(elsewhere) not in text
+
+
+# ----------------------------------------------------------------------------- paths, dates, lengths
+
+
+@pytest.mark.parametrize(
+    "code", ["baselines/../../../../etc/passwd", "/etc/passwd", "../outside", "baselines/../../x"]
+)
+def test_code_paths_must_stay_inside_the_repository(tmp_path: Path, code: str) -> None:
+    folder = _write(_repo(tmp_path), _good_meta(code=code))
+    assert "is a path outside the repository" in _problems(folder)
+
+
+def test_a_code_link_leaving_the_repository_is_refused(tmp_path: Path) -> None:
+    folder = _repo(tmp_path / "repo")
+    (tmp_path / "outside.py").write_text("")
+    (tmp_path / "repo" / "baselines" / "escape.py").symlink_to(tmp_path / "outside.py")
+    _write(folder, _good_meta(code="baselines/escape.py"))
+    assert "is a path outside the repository" in _problems(folder)
+    _write(folder, _good_meta(code="baselines/m.py"))
+    assert lb.read_entry(folder).meta.code == "baselines/m.py"
+
+
+def test_dates_must_not_be_in_the_future(tmp_path: Path) -> None:
+    folder = _write(_repo(tmp_path), _good_meta(date="2999-01-01"))
+    assert "date 2999-01-01 is in the future" in _problems(folder)
+    tomorrow = latest_date() + dt.timedelta(days=1)
+    _write(folder, _good_meta(date=tomorrow.isoformat()))
+    assert "is in the future" in _problems(folder)
+    _write(folder, _good_meta(date=dt.date.today()))  # a YAML date, today
+    assert lb.read_entry(folder).meta.date == dt.date.today().isoformat()
+
+
+def test_text_fields_are_bounded_and_not_echoed(tmp_path: Path) -> None:
+    huge = "N" * 10_000
+    folder = _write(_repo(tmp_path), _good_meta(name=huge, notes="x" * (MAX_LENGTHS["notes"] + 1)))
+    text = _problems(folder)
+    assert f"field 'name' is 10000 characters long; at most {MAX_LENGTHS['name']} are allowed" in text
+    assert f"field 'notes' is {MAX_LENGTHS['notes'] + 1} characters long" in text
+    assert "NNNNNNNNNN" not in text
+    _write(folder, _good_meta(name="two\nlines", description="ring\x07bell"))
+    text = _problems(folder)
+    assert "field 'name' must not hold line breaks or control characters" in text
+    assert "field 'description' must not hold control characters" in text
+
+
+def test_an_unknown_field_name_is_shown_shortened(tmp_path: Path) -> None:
+    folder = _write(_repo(tmp_path), _good_meta() | {"k" * 500: 1})
+    text = _problems(folder)
+    assert "unknown field 'kkkk" in text and "k" * 100 not in text
+
+
+def test_an_entry_needs_a_board(tmp_path: Path) -> None:
+    folder = _repo(tmp_path)
+    folder = folder.rename(folder.parent / "odmd-v1-val")
+    _write(folder, _good_meta(split="val"))
+    assert "there is no board for odmd-v1 val; the boards are odmd-paper test, odmd-v1 test" in _problems(
+        folder
+    )
+
+
+def test_entry_meta_is_validated_on_creation() -> None:
+    good = _good_meta()
+    meta = EntryMeta(**good)  # type: ignore[arg-type]
+    assert meta.to_dict() == good
+    with pytest.raises(ValidationError, match="incomplete or wrong") as info:
+        EntryMeta(**(good | {"date": "2999-01-01", "benchmark": "nope"}))  # type: ignore[arg-type]
+    assert "unknown benchmark 'nope'" in info.value.render()
+    with pytest.raises(AttributeError):
+        meta.name = "other"  # type: ignore[misc]
+
+
+def test_json_metadata_gets_the_same_checks(tmp_path: Path) -> None:
+    folder = _repo(tmp_path)
+    (folder / "entry.json").write_text(json.dumps(_good_meta(code="../../../etc/passwd")))
+    assert "is a path outside the repository" in _problems(folder)

@@ -1,0 +1,112 @@
+"""Packaging: what ``pip install odmd-bench`` requires, the extras, the methods' entry points,
+and the error a command gives when its extra is missing. The built wheel itself, installed
+outside the repository with and without torch, is tested by ``scripts/check_wheel.sh``."""
+
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from odmd_bench import extras, methods
+from odmd_bench.errors import UsageError
+
+ROOT = Path(__file__).resolve().parents[1]
+tomllib = pytest.importorskip("tomllib")  # Python 3.11+; the checks below need it only
+
+
+@pytest.fixture(scope="module")
+def project() -> dict:
+    with open(ROOT / "pyproject.toml", "rb") as fh:
+        return tomllib.load(fh)["project"]
+
+
+def names(requirements: list[str]) -> set[str]:
+    return {re.match(r"[A-Za-z0-9._-]+", r).group(0).lower() for r in requirements}  # type: ignore[union-attr]
+
+
+def closure(project: dict, extra: str) -> set[str]:
+    """Every distribution an extra pulls, through its references to odmd-bench's own extras."""
+    found: set[str] = set()
+    for req in project["optional-dependencies"][extra]:
+        own = re.fullmatch(r"odmd-bench\[([^\]]+)\]", req.replace(" ", ""))
+        if own:
+            for e in own.group(1).split(","):
+                found |= closure(project, e)
+        else:
+            found |= names([req])
+    return found
+
+
+def test_the_base_install_needs_neither_torch_nor_matplotlib(project: dict) -> None:
+    assert not names(project["dependencies"]) & {"torch", "matplotlib"}
+    assert closure(project, "dbox") == {"torch"}
+    assert closure(project, "plot") == {"matplotlib"}
+    assert {"torch", "matplotlib"} <= closure(project, "all")
+    assert closure(project, "all") <= closure(project, "dev")  # the tests cover every command
+    assert "pytest" in closure(project, "dev")
+
+
+def test_mypy_targets_the_oldest_python_supported(project: dict) -> None:
+    with open(ROOT / "pyproject.toml", "rb") as fh:
+        mypy = tomllib.load(fh)["tool"]["mypy"]
+    assert project["requires-python"] == f">={mypy['python_version']}"
+
+
+def test_every_entry_point_names_a_module_with_both_functions(project: dict) -> None:
+    declared = project["entry-points"][methods.GROUP]
+    assert set(declared) <= set(methods.names()), (
+        "the installed entry points are stale: run `pip install --no-deps -e .`"
+    )
+    for name, target in declared.items():
+        method = methods.load(name)
+        assert method.target == target
+        assert method.source.startswith("odmd-bench ")
+
+
+def test_every_package_folder_is_a_regular_package() -> None:
+    """setup.py finds packages by their ``__init__.py``: a folder without one would be left
+    out of the wheel (a namespace package is not found)."""
+    folders = {p.parent for top in ("odmd_bench", "baselines") for p in (ROOT / top).rglob("*.py")}
+    assert not [str(f.relative_to(ROOT)) for f in folders if not (f / "__init__.py").is_file()]
+
+
+def test_require_names_the_extra_to_install() -> None:
+    with pytest.raises(
+        UsageError, match=re.escape("baseline 'x' needs no_such_module_odmd, which is not")
+    ) as e:
+        extras.require("no_such_module_odmd.sub", "dbox", "baseline 'x'")
+    assert "pip install 'odmd-bench[dbox]'" in str(e.value)
+    assert extras.require("json", "plot").dumps([1]) == "[1]"
+
+
+def test_require_re_raises_a_module_missing_inside_an_installed_one(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    (tmp_path / "odmd_broken_pkg.py").write_text("import no_such_dependency_of_odmd\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    with pytest.raises(ModuleNotFoundError, match="no_such_dependency_of_odmd"):
+        extras.require("odmd_broken_pkg", "dbox")
+
+
+def test_the_extra_of_a_module_comes_from_the_installed_metadata() -> None:
+    assert extras.extra_providing("torch.nn") == "dbox"
+    assert extras.extra_providing("matplotlib.figure") == "plot"
+    assert extras.extra_providing("numpy") is None  # required by the base install
+
+
+def test_dbox_without_torch_exits_2_naming_the_extra(v1_data_dir: Path, tmp_path: Path) -> None:
+    code = "import sys; sys.modules['torch'] = None\nfrom odmd_bench.cli.main import main; main()"
+    out = tmp_path / "p.csv"
+    done = subprocess.run(
+        [sys.executable, "-c", code, "baseline", "dbox", "--data-dir", str(v1_data_dir), "-o", str(out)],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    assert done.returncode == 2, done.stderr
+    assert "pip install 'odmd-bench[dbox]'" in done.stderr
+    assert "Traceback" not in done.stderr and not out.exists()

@@ -1,0 +1,392 @@
+"""The sequences format (pixels and odometry) and ``odmd-bench predict``."""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import gzip
+import io
+import types
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner, Result
+
+import odmd_bench
+from odmd_bench import DataError, Examples, UsageError, ValidationError, methods
+from odmd_bench.cli.main import cli
+from odmd_bench.data import pixels
+from odmd_bench.evaluation.metrics import set_metrics
+
+SIZE = (640, 480)
+K = ("--intrinsics", "205.5", "205.5", "320.5", "240.5")
+DOCS = Path(__file__).resolve().parents[1] / "docs"
+
+
+def _with_misses(ex: Examples, rate: float, seed: int) -> Examples:
+    """``ex`` with a fraction of its detections removed (zero boxes, as stored)."""
+    det = np.random.default_rng(seed).random(ex.detected.shape) >= rate
+    return dataclasses.replace(ex, detected=det, boxes=np.where(det[..., None], ex.boxes, 0.0))
+
+
+def _examples(n: int = 200, seed: int = 0) -> Examples:
+    return _with_misses(odmd_bench.generate(n, perturbation="both", rng=seed), 0.05, seed)
+
+
+def _read(text: str, **kw: object) -> pixels.Sequences:
+    return pixels.read_sequences(text.encode(), SIZE, **kw)  # type: ignore[arg-type]
+
+
+def _problems(text: str) -> ValidationError:
+    with pytest.raises(ValidationError) as info:
+        _read(text)
+    return info.value
+
+
+def _csv_rows(text: str) -> list[dict[str, str]]:
+    return list(csv.DictReader(io.StringIO(text)))
+
+
+# --- conversion --------------------------------------------------------------------------------
+
+
+def test_a_generated_set_goes_to_the_csv_and_back_with_the_same_arrays() -> None:
+    ex = _examples(300)
+    back = _read(pixels.format_sequences(ex)).examples()
+    assert back.n_obs == ex.n_obs and len(back) == len(ex)
+    np.testing.assert_array_equal(back.detected, ex.detected)
+    # Boxes go through pixels and back: equal to rounding; missed ones are zero as stored.
+    np.testing.assert_allclose(back.boxes, ex.boxes, rtol=0, atol=1e-15)
+    # Camera (already relative to the last observation) and depths are copied exactly.
+    np.testing.assert_array_equal(back.camera, ex.camera)
+    np.testing.assert_array_equal(back.depth, ex.depth)
+    np.testing.assert_array_equal(back.observation_depth, ex.observation_depth)
+    assert back.attrs["image_width"] == 640 and back.attrs["image_height"] == 480
+
+
+def test_pixel_corners_follow_the_packages_convention() -> None:
+    # A box from x 100 to 300 and y 60 to 120 in a 400 x 200 image.
+    corners = np.array([[[100.0, 60.0, 300.0, 120.0], [np.nan] * 4, [110.0, 70.0, 290.0, 110.0]]])
+    camera = np.array([[[1.0, 2.0, 3.0], [1.0, 2.0, 3.5], [1.5, 2.0, 4.0]]])  # any fixed origin
+    ex = Examples.from_pixels(corners, camera, (400, 200))
+    np.testing.assert_allclose(ex.boxes[0, 0], [200 / 400, 90 / 200, 200 / 400, 60 / 200])
+    assert ex.detected.tolist() == [[True, False, True]]
+    assert ex.boxes[0, 1].tolist() == [0.0] * 4
+    np.testing.assert_array_equal(ex.camera[0], [[-0.5, 0.0, -1.0], [-0.5, 0.0, -0.5], [0.0, 0.0, 0.0]])
+    assert np.isnan(ex.depth).all()
+
+
+def test_examples_take_no_depth() -> None:
+    ex = odmd_bench.generate(3, rng=0)
+    bare = Examples(ex.boxes, ex.detected, ex.camera)
+    assert bare.depth.shape == (3,) and np.isnan(bare.depth).all()
+
+
+def test_from_pixels_names_every_bad_array() -> None:
+    corners = np.array([[[1.0, 1.0, 0.5, 2.0], [1.0, np.nan, 2.0, 2.0], [1.0, 1.0, 2.0, np.inf]]])
+    camera = np.zeros((1, 3, 3))
+    camera[0, 0, 0] = np.nan
+    with pytest.raises(DataError) as info:
+        Examples.from_pixels(corners, camera, SIZE, depth=[-1.0])
+    text = info.value.render()
+    for words in ("partly NaN", "x2 <= x1", "not finite", "camera position", "depth"):
+        assert words in text
+
+
+def test_rows_may_come_in_any_order() -> None:
+    text = pixels.format_sequences(_examples(50), names=[f"s{i}" for i in range(50)])
+    header, *rows = text.splitlines()
+    shuffled = [rows[i] for i in np.random.default_rng(1).permutation(len(rows))]
+    a, b = _read(text), _read("\n".join([header, *shuffled]) + "\n")
+    order = [b.names.index(name) for name in a.names]
+    np.testing.assert_array_equal(b.examples().boxes[order], a.examples().boxes)
+    np.testing.assert_array_equal(b.examples().camera[order], a.examples().camera)
+
+
+def test_the_careful_reader_gives_the_same_numbers_as_the_fast_one() -> None:
+    text = pixels.format_sequences(_examples(100))
+    # A blank line, CRLF line ends and a BOM each force or test the row-by-row reader.
+    for variant in (text.replace("\n", "\n\n", 5), "\ufeff" + text.replace("\n", "\r\n")):
+        slow, fast = _read(variant).examples(), _read(text).examples()
+        for name in ("boxes", "detected", "camera", "depth", "observation_depth"):
+            np.testing.assert_array_equal(getattr(slow, name), getattr(fast, name))
+
+
+def test_both_readers_parse_decimals_of_any_length_alike() -> None:
+    rng = np.random.default_rng(7)
+    rows = []
+    for i in range(3000):
+        digits = int(rng.integers(1, 20))
+        x1, y1 = (f"{v:.{digits}g}" for v in rng.uniform(0, 300, 2))
+        x2, y2 = (f"{v:.{digits}g}" for v in rng.uniform(400, 900, 2))
+        cam = ",".join(f"{v:.{digits}e}" for v in rng.normal(0, 1, 3))
+        rows.append(f"s{i // 3},{i % 3},{x1},{y1},{x2},{y2},{cam}")
+    text = ",".join(pixels.REQUIRED_COLUMNS) + "\n" + "\n".join(rows) + "\n"
+    # A quoted cell sends the file to the row-by-row reader.
+    fast, slow = _read(text).examples(), _read(text.replace("\ns0,", '\n"s0",', 1))
+    assert slow.names == _read(text).names
+    np.testing.assert_array_equal(slow.examples().boxes, fast.boxes)
+    np.testing.assert_array_equal(slow.examples().camera, fast.camera)
+
+
+def test_sequences_of_different_lengths_are_grouped_and_kept_in_file_order() -> None:
+    ex = _examples(30)
+    lengths = [2, 3, 10, 3, 2, 7] * 5
+    parts = []
+    for i, n in enumerate(lengths):
+        one = (
+            pixels.select_observations(ex.subset(slice(i, i + 1)), n)
+            if n < 10
+            else ex.subset(slice(i, i + 1))
+        )
+        body = pixels.format_sequences(one, names=[f"q{i}"]).splitlines()[1:]
+        parts += body
+    text = ",".join(pixels.REQUIRED_COLUMNS) + ",depth\n" + "\n".join(parts) + "\n"
+    seqs = _read(text)
+    assert seqs.names == tuple(f"q{i}" for i in range(30))
+    assert seqs.n_obs.tolist() == lengths
+    assert [g[1].n_obs for g in seqs.groups] == [2, 3, 7, 10]
+    result = pixels.predict_sequences(seqs, "box-ls")
+    from odmd_bench_baselines import box_ls
+
+    for index, group in seqs.groups:
+        np.testing.assert_array_equal(result.depth[index], box_ls.predict(group))
+    assert result.observations.tolist() == lengths
+    with pytest.raises(UsageError, match="different lengths"):
+        seqs.examples()
+
+
+def test_observation_selection_keeps_the_first_and_the_last_evenly() -> None:
+    assert pixels.observation_indices(10, 10).tolist() == list(range(10))
+    assert pixels.observation_indices(19, 10).tolist() == list(range(0, 19, 2))
+    for n in range(10, 60):
+        idx = pixels.observation_indices(n, 10)
+        assert idx[0] == 0 and idx[-1] == n - 1 and (np.diff(idx) >= 1).all()
+        assert np.diff(idx).max() - np.diff(idx).min() <= 1
+
+
+def _fake_method(count: int | None) -> types.SimpleNamespace:
+    seen: list[Examples] = []
+
+    def predict_report(examples: Examples) -> tuple[np.ndarray, dict[str, int]]:
+        seen.append(examples)
+        # Depth = the camera z of the first observation it was given, to see the selection.
+        return -examples.camera[:, 0, 2].copy(), {"n": len(examples)}
+
+    return types.SimpleNamespace(
+        name="fake", observations=count, predict=predict_report, predict_report=predict_report, seen=seen
+    )
+
+
+def test_a_method_built_for_k_observations_gets_k_chosen_evenly_or_a_clear_error() -> None:
+    ex = _examples(4)
+    seqs = _read(pixels.format_sequences(ex))
+    method = _fake_method(4)
+    result = pixels.predict_sequences(seqs, method)
+    given = method.seen[0]
+    assert given.n_obs == 4 and result.observations.tolist() == [4] * 4
+    keep = pixels.observation_indices(10, 4)
+    np.testing.assert_array_equal(given.camera, ex.camera[:, keep])
+    np.testing.assert_array_equal(given.detected, ex.detected[:, keep])
+    short = _read(pixels.format_sequences(pixels.select_observations(ex, 3)))
+    with pytest.raises(UsageError, match="takes 4 observations per sequence; 4 of 4 sequences have fewer"):
+        pixels.predict_sequences(short, method)
+    # A method declaring nothing takes every observation.
+    free = _fake_method(None)
+    pixels.predict_sequences(seqs, free)
+    assert free.seen[0].n_obs == 10
+
+
+def test_dbox_declares_its_ten_observations() -> None:
+    assert pixels.method_observations(methods.load("dbox")) == 10
+    assert pixels.method_observations(methods.load("box-ls")) is None
+
+
+# --- strict reading ----------------------------------------------------------------------------
+
+GOOD = (
+    "sequence,observation,x1,y1,x2,y2,cam_x,cam_y,cam_z,depth\n"
+    "a,1,100,100,140,150,0,0,0,\n"
+    "a,2,,,,,0,0,0.1,\n"
+    "a,3,90,90,150,160,0,0,0.2,1.5\n"
+)
+
+
+def test_an_empty_box_is_a_missed_detection() -> None:
+    ex = _read(GOOD).examples()
+    assert ex.detected.tolist() == [[True, False, True]]
+    assert ex.depth.tolist() == [1.5]
+
+
+def test_every_bad_row_is_located_and_counted() -> None:
+    text = (
+        "sequence,observation,x1,y1,x2,y2,cam_x,cam_y,cam_z,depth\n"
+        "a,1,100,100,140,150,0,0,0,\n"  # 2 fine
+        "a,2,100,,140,150,0,0,0.1,\n"  # 3 partly empty box
+        "a,3,140,100,100,150,0,0,0.2,1.5\n"  # 4 x2 <= x1
+        "b,1,1,1,2,2,zero,0,0,\n"  # 5 not a number
+        "b,2,1,1,2,2,0,0,inf,\n"  # 6 not finite
+        "b,2,1,1,2,2,0,0,0.3,-1\n"  # 7 repeated observation, negative depth
+        "c,1,1,1,2,2,0,0,0\n"  # 8 wrong number of fields
+        ",1,1,1,2,2,0,0,0,\n"  # 9 empty sequence
+        "d,1,1,1,2,2,0,0,,\n"  # 10 empty cam_z; d has one observation
+    )
+    problems = _problems(text).problems
+    expected = {
+        "box partly empty": "(1 row): line 3",
+        "box with x2 <= x1": "(1 row): line 4",
+        "cam_x is not a number": "(1 row): line 5 ('zero')",
+        "cam_z is not finite": "(1 row): line 6",
+        "depth must be > 0": "(1 row): line 7 ('-1.0')",
+        "observation repeated within a sequence": "(1 row): lines 6 and 7 (sequence 'b', observation 2)",
+        "wrong number of fields (every row must have 10": "(1 row): line 8 (9)",
+        "sequence is empty": "(1 row): line 9",
+        "cam_z is empty": "(1 row): line 10",
+        "sequence with one observation": "(1 row): line 10 ('d')",
+    }
+    assert len(problems) == len(expected)
+    for kind, where in expected.items():
+        line = next(p for p in problems if p.startswith(kind))
+        assert line.endswith(where), line
+
+
+def test_a_file_of_many_bad_rows_gives_a_short_message() -> None:
+    rows = [f"s{i // 2},{i % 2},1,1,0,2,0,0,{i % 2}" for i in range(100_000)]
+    text = ",".join(pixels.REQUIRED_COLUMNS) + "\n" + "\n".join(rows) + "\n"
+    error = _problems(text)
+    assert error.problems == [
+        "box with x2 <= x1 (100000 rows): line 2, line 3, line 4, line 5, line 6, ... (99995 more)"
+    ]
+    assert len(error.render()) < 300
+
+
+def test_header_problems_name_the_missing_and_misspelt_columns() -> None:
+    error = _problems("sequence,observation,x1,y1,x2,y_2,cam_x,cam_y,camz\na,1,1,1,2,2,0,0,0\n")
+    text = "\n".join(error.problems)
+    assert "missing column 'y2' (the header has 'y_2': misspelt?)" in text
+    assert "missing column 'cam_z' (the header has 'camz': misspelt?)" in text
+    assert "semicolons" in "\n".join(_problems("sequence;observation;x1\n").problems)
+    assert _problems("").problems[0].startswith("the file is empty")
+    assert "no rows" in _problems(",".join(pixels.REQUIRED_COLUMNS) + "\n").problems[0]
+    with pytest.raises(ValidationError, match="not UTF-8"):
+        pixels.read_sequences(GOOD.replace("a,1", "\xe9,1").encode("latin-1"), SIZE)
+
+
+def test_quoted_names_and_extra_columns_are_read() -> None:
+    text = GOOD.replace("sequence,", "note,sequence,").replace("\na,", '\nx,"a, the mug",')
+    seqs = _read(text)
+    assert seqs.names == ("a, the mug",) and seqs.ignored_columns == ("note",)
+
+
+def test_a_gzip_file_is_read_like_the_plain_one(tmp_path: Path) -> None:
+    path = tmp_path / "s.csv.gz"
+    path.write_bytes(gzip.compress(GOOD.encode()))
+    a, b = pixels.read_sequences(path, SIZE).examples(), _read(GOOD).examples()
+    np.testing.assert_array_equal(a.boxes, b.boxes)
+    path.write_bytes(gzip.compress(GOOD.encode())[:20])
+    with pytest.raises(ValidationError, match="gzip"):
+        pixels.read_sequences(path, SIZE)
+
+
+def test_image_size_and_intrinsics_are_checked() -> None:
+    with pytest.raises(UsageError, match="image size"):
+        pixels.read_sequences(GOOD.encode(), (0, 480))
+    with pytest.raises(UsageError, match="intrinsics"):
+        pixels.read_sequences(GOOD.encode(), SIZE, (1.0, 2.0, 3.0))
+
+
+# --- the command -------------------------------------------------------------------------------
+
+
+def _invoke(args: list[str], stdin: str | None = None) -> Result:
+    return CliRunner().invoke(cli, args, input=stdin, catch_exceptions=False)
+
+
+def test_predict_box_ls_equals_baseline_box_ls_on_the_same_sequences(
+    tmp_path: Path, v1_data_dir: Path
+) -> None:
+    preds = tmp_path / "preds.csv"
+    r = _invoke(["baseline", "box-ls", "--data-dir", str(v1_data_dir), "-o", str(preds)])
+    assert r.exit_code == 0, r.output
+    expected = {(row["set"], int(row["index"])): float(row["depth"]) for row in _csv_rows(preds.read_text())}
+    sets = odmd_bench.load_split("test", data_dir=v1_data_dir)
+    for set_name, ex in sets.items():
+        seq_csv = tmp_path / f"{set_name}.csv"
+        names = [f"{set_name}-{i}" for i in range(len(ex))]
+        pixels.write_sequences(seq_csv, ex, names=names)
+        out = tmp_path / f"{set_name}-depths.csv"
+        r = _invoke(
+            ["predict", str(seq_csv), "--method", "box-ls", "--image-size", "640", "480", "-o", str(out)]
+        )
+        assert r.exit_code == 0, r.output
+        got = _csv_rows(out.read_text())
+        assert [row["sequence"] for row in got] == names
+        want = np.array([expected[(set_name, i)] for i in range(len(ex))])
+        depth = np.array([float(row["depth"]) for row in got])
+        unsolved = want == 0.0  # the fallback depth, given alike by both
+        np.testing.assert_array_equal(depth[unsolved], 0.0)
+        np.testing.assert_allclose(depth[~unsolved], want[~unsolved], rtol=1e-9, atol=0)
+        # Truth was in the file: the summary is evaluate's, from the metrics module.
+        m = set_metrics(ex.depth, depth)
+        assert f"{m['percent_error']['mean']:9.2f}" in r.output
+
+
+def test_predict_writes_stdout_with_dash_and_keeps_messages_off_it(tmp_path: Path) -> None:
+    path = tmp_path / "s.csv"
+    path.write_text(GOOD)
+    r = _invoke(["predict", str(path), "--method", "box-ls", "--image-size", "640", "480", "-o", "-"])
+    assert r.exit_code == 0
+    rows = _csv_rows(r.stdout)
+    assert list(rows[0]) == ["sequence", "depth", "observations", "detections", "true_depth", "percent_error"]
+    assert rows[0]["sequence"] == "a" and rows[0]["observations"] == "3" and rows[0]["detections"] == "2"
+    assert "error against the true depths" in r.stderr
+
+
+def test_predict_reads_stdin_and_writes_a_default_file(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.chdir(tmp_path)
+    r = _invoke(["predict", "-", "--method", "expansion", "--image-size", "640", "480"], stdin=GOOD)
+    assert r.exit_code == 0, r.output
+    assert (tmp_path / "depths-expansion.csv").is_file()
+    assert "depths-expansion.csv" in r.output
+
+
+def test_methods_that_need_intrinsics_say_so(tmp_path: Path) -> None:
+    path = tmp_path / "s.csv"
+    path.write_text(GOOD)
+    for method in ("parallax", "robust"):
+        r = _invoke(["predict", str(path), "--method", method, "--image-size", "640", "480"])
+        assert r.exit_code == 2
+        assert "needs the camera intrinsics" in r.output and "--intrinsics" in r.output
+        ok = _invoke(["predict", str(path), "--method", method, "--image-size", "640", "480", *K, "-o", "-"])
+        assert ok.exit_code == 0, ok.output
+
+
+def test_bad_files_and_options_exit_2_without_a_traceback(tmp_path: Path) -> None:
+    path = tmp_path / "s.csv"
+    path.write_text(GOOD.replace("a,2,,,,,", "a,2,1,,,,"))
+    args = ["predict", str(path), "--image-size", "640", "480"]
+    r = _invoke([*args, "--method", "box-ls"])
+    assert r.exit_code == 2 and "line 3" in r.output and "Traceback" not in r.output
+    assert _invoke(["predict", str(path), "--method", "box-ls"]).exit_code == 2
+    r = _invoke([*args, "--method", "no-such-method"])
+    assert r.exit_code == 2 and "no-such-method" in r.output
+    path.write_text(GOOD)
+    r = _invoke([*args, "--method", "box-ls", "--config", "p"])
+    assert r.exit_code == 2 and "--config" in r.output
+
+
+def test_the_documented_example_gives_the_documented_depths() -> None:
+    example = DOCS / "sequences-example.csv"
+    doc = (DOCS / "own-data.md").read_text(encoding="utf-8")
+    size = ["--image-size", "4032", "3024"]
+    for method, extra in (("box-ls", []), ("robust", ["--intrinsics", "3100", "3100", "2016", "1512"])):
+        r = _invoke(["predict", str(example), "--method", method, *size, *extra, "-o", "-"])
+        assert r.exit_code == 0, r.output
+        rows = r.stdout.splitlines()
+        assert len(rows) == 3 and all(row in doc for row in rows)
+        if method == "box-ls":
+            summary = r.stderr.splitlines()[-4:]
+            assert all(line in doc for line in summary)

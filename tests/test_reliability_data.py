@@ -1,0 +1,486 @@
+"""Reliability of the data folder (issue 16, items 1-4, 6 and 11).
+
+Each test reproduces one way a hostile or unlucky user breaks the data files, and
+asserts the outcome: a clear package error (exit 2, the fixing command named), a
+rebuild by ``generate``/``import``, or the right data. Never a wrong score.
+"""
+
+from __future__ import annotations
+
+import errno
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+import odmd_bench
+from odmd_bench.data.io import clean_stale_temps, content_sha256, meta_sha256, read_set, write_sets
+from odmd_bench.data.registry import set_file
+from odmd_bench.data.store import ensure_generated, manifest
+from odmd_bench.errors import DataError, MissingDataError, StorageError
+
+ODMD_SETS = ("normal", "camera", "object", "robot")
+
+
+@pytest.fixture(scope="module")
+def v1(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A pristine generated data folder (copied by each test that damages it)."""
+    d = tmp_path_factory.mktemp("v1")
+    ensure_generated("odmd-v1", ("val", "test"), d)
+    return d
+
+
+def _copy(src: Path, dst: Path) -> Path:
+    shutil.copytree(src, dst)
+    return dst
+
+
+def _cli(*args: str, env_data: Path | None = None, **kw: object) -> subprocess.CompletedProcess[str]:
+    env = dict(os.environ)
+    if env_data is not None:
+        env["ODMD_BENCH_DATA"] = str(env_data)
+    return subprocess.run(
+        [sys.executable, "-m", "odmd_bench", *args],
+        capture_output=True,
+        text=True,
+        env=env,
+        check=False,
+        **kw,
+    )  # type: ignore[call-overload]
+
+
+def _clear_error(done: subprocess.CompletedProcess[str], *needles: str) -> None:
+    assert done.returncode == 2, done.stderr
+    assert "Traceback" not in done.stderr and "internal error" not in done.stderr
+    for n in needles:
+        assert n in done.stderr, done.stderr
+
+
+def _robust_like(ex: odmd_bench.Examples) -> float:
+    """A number that depends on the intrinsics, as the robust and parallax methods do."""
+    fx, fy, cx, cy, w, h = ex.intrinsics()
+    return float(np.mean(ex.boxes[:, -1, 0] * w - cx) / fx)
+
+
+# ---------------------------------------------------------------- 1: metadata
+
+
+def test_edited_intrinsics_are_refused_then_rebuilt(v1: Path, tmp_path: Path) -> None:
+    d = _copy(v1, tmp_path / "d")
+    right = _robust_like(odmd_bench.load("test", "normal", data_dir=d))
+    path = set_file("odmd-v1", "test", d)
+    with h5py.File(path, "r+") as f:
+        for g in f.values():
+            g.attrs["fx"] = 411.0
+    with pytest.raises(DataError, match=r"altered: its attributes .*odmd-bench generate --data-dir"):
+        odmd_bench.load("test", "normal", data_dir=d)
+    messages: list[str] = []
+    result = ensure_generated("odmd-v1", ["test"], d, progress=messages.append)
+    assert result["test"]["replaced"] and not result["test"]["reused"]
+    assert any(m.startswith(f"replacing {path}") and "altered" in m for m in messages)
+    assert _robust_like(odmd_bench.load("test", "normal", data_dir=d)) == right
+
+
+@pytest.mark.parametrize(
+    ("key", "value"),
+    [("image_width", 1280), ("cy", 0.0), ("generator_version", 2), ("set", "camera"), ("extra_note", "x")],
+)
+def test_every_attribute_is_covered(v1: Path, tmp_path: Path, key: str, value: object) -> None:
+    d = _copy(v1, tmp_path / "d")
+    with h5py.File(set_file("odmd-v1", "val", d), "r+") as f:
+        f["normal"].attrs[key] = value
+    with pytest.raises(DataError):
+        odmd_bench.load("val", "normal", data_dir=d)
+
+
+def test_meta_hash_is_canonical() -> None:
+    a = {"fx": 205.5, "image_width": 640, "set": "normal", "content_sha256": "x"}
+    assert meta_sha256(a) == meta_sha256({**a, "content_sha256": "y", "meta_sha256": "z"})
+    assert meta_sha256(a) == meta_sha256({k: a[k] for k in reversed(list(a))})
+    assert meta_sha256(a) == meta_sha256({**a, "fx": np.float64(205.5), "image_width": np.int64(640)})
+    assert meta_sha256(a) != meta_sha256({**a, "fx": float(np.nextafter(205.5, 300))})
+    assert meta_sha256(a) != meta_sha256({**a, "image_width": 640.0})
+
+
+# ------------------------------------------------------------ 2: identity, pins
+
+
+def test_a_file_of_another_benchmark_is_refused(v1: Path, tmp_path: Path) -> None:
+    d = tmp_path / "d"
+    set_file("odmd-paper", "test", d).parent.mkdir(parents=True)
+    shutil.copy(set_file("odmd-v1", "test", v1), set_file("odmd-paper", "test", d))
+    with pytest.raises(DataError, match="found as benchmark 'odmd-paper'") as info:
+        odmd_bench.load("test", "normal", "odmd-paper", d)
+    assert "odmd-bench import" in info.value.render()
+    set_file("odmd-v1", "test", d).parent.mkdir(parents=True)
+    shutil.copy(set_file("odmd-v1", "val", v1), set_file("odmd-v1", "test", d))
+    with pytest.raises(DataError, match="found as split 'test'"):
+        odmd_bench.load("test", "normal", data_dir=d)
+
+
+def test_a_renamed_group_is_refused(v1: Path, tmp_path: Path) -> None:
+    d = _copy(v1, tmp_path / "d")
+    with h5py.File(set_file("odmd-v1", "val", d), "r+") as f:
+        f.move("normal", "tmp")
+        f.move("camera", "normal")
+        f.move("tmp", "camera")
+    with pytest.raises(DataError, match="says it is set 'camera'"):
+        odmd_bench.load("val", "normal", data_dir=d)
+
+
+@pytest.fixture()
+def paper_copy(paper_data_dir: Path, tmp_path: Path) -> Path:
+    return _copy(paper_data_dir, tmp_path / "paper")
+
+
+def test_imported_sets_are_pinned(paper_data_dir: Path) -> None:
+    for bench in ("odmd-paper", "odms-detection"):
+        for split in ("val", "test"):
+            for s, entry in manifest(bench)["splits"][split].items():
+                ex = odmd_bench.load(split, s, bench, paper_data_dir)
+                assert ex.attrs["content_sha256"] == entry["sha256"]
+                assert ex.attrs["meta_sha256"] == entry["meta_sha256"]
+                assert ex.attrs["source_sha256"] == entry["source_sha256"]
+
+
+@pytest.mark.parametrize("recompute_meta", [False, True])
+def test_an_edited_imported_set_is_refused_even_with_its_hashes_recomputed(
+    paper_copy: Path, recompute_meta: bool
+) -> None:
+    path = set_file("odmd-paper", "test", paper_copy)
+    with h5py.File(path, "r+") as f:
+        g = f["object"]
+        depth = g["depth"][()]
+        depth[:100] *= 2
+        g["depth"][...] = depth
+        g.attrs["content_sha256"] = content_sha256({k: g[k][()] for k in g})
+        if recompute_meta:
+            attrs = {k: v for k, v in g.attrs.items()}
+            g.attrs["meta_sha256"] = meta_sha256(attrs)
+    with pytest.raises(DataError, match=r"differs from the pinned .* splits/odmd-paper.json"):
+        odmd_bench.load("test", "object", "odmd-paper", paper_copy)
+    odmd_bench.load("test", "camera", "odmd-paper", paper_copy)  # the other sets are fine
+
+
+def test_a_set_from_the_wrong_original_is_refused(paper_copy: Path) -> None:
+    src = set_file("odmd-paper", "val", paper_copy)
+    dst = set_file("odmd-paper", "test", paper_copy)
+    ex = read_set(src, "robot")
+    ex.attrs.update(split="test")
+    sets = {s: read_set(dst, s) for s in ODMD_SETS if s != "robot"}
+    write_sets(dst, {**sets, "robot": ex}, file_attrs={"benchmark": "odmd-paper", "split": "test"})
+    with pytest.raises(DataError, match="conversion of data/odmd/val/val_robot.pk"):
+        odmd_bench.load("test", "robot", "odmd-paper", paper_copy)
+
+
+def test_pins_are_reproducible(original_release: Path) -> None:
+    script = Path(__file__).resolve().parents[1] / "scripts" / "pin_splits.py"
+    done = subprocess.run(
+        [sys.executable, str(script), "--original", str(original_release), "--check"],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    assert done.returncode == 0, done.stderr
+
+
+# ----------------------------------------------------- 3: damaged HDF5 metadata
+
+
+def _flip(path: Path, pos: int) -> None:
+    data = bytearray(path.read_bytes())
+    data[pos] ^= 0x80
+    path.write_bytes(bytes(data))
+
+
+def test_a_flipped_header_byte_is_a_clear_error_and_generate_rebuilds(v1: Path, tmp_path: Path) -> None:
+    d = _copy(v1, tmp_path / "d")
+    path = set_file("odmd-v1", "test", d)
+    _flip(path, 499)
+    done = _cli("baseline", "box-ls", "-o", str(tmp_path / "p.csv"), env_data=d)
+    _clear_error(done, str(path), "odmd-bench generate")
+    done = _cli("generate", env_data=d)
+    assert done.returncode == 0, done.stderr
+    assert f"replacing {path}" in done.stderr and "damaged" in done.stderr
+    assert "test.h5 (rebuilt;" in done.stdout
+    assert len(odmd_bench.load("test", "normal", data_dir=d)) == 3000
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(pos=st.integers(min_value=0, max_value=4095), bit=st.integers(min_value=0, max_value=7))
+def test_any_flipped_bit_gives_the_right_set_or_a_data_error(tmp_path: Path, pos: int, bit: int) -> None:
+    src = tmp_path / "src.h5"
+    if not src.exists():
+        sets = {s: odmd_bench.generate(20, rng=i) for i, s in enumerate(("normal", "camera"))}
+        write_sets(src, sets, file_attrs={"benchmark": "odmd-v1", "split": "val"})
+    want = {s: read_set(src, s).attrs["content_sha256"] for s in ("normal", "camera")}
+    data = bytearray(src.read_bytes())
+    data[pos % len(data)] ^= 1 << bit
+    bad = tmp_path / "bad.h5"
+    bad.write_bytes(bytes(data))
+    for s in ("normal", "camera"):
+        try:
+            ex = read_set(bad, s)
+        except DataError:
+            continue
+        assert ex.attrs["content_sha256"] == want[s]
+
+
+def test_import_rebuilds_an_unreadable_file(paper_copy: Path, original_release: Path) -> None:
+    path = set_file("odmd-paper", "test", paper_copy)
+    with open(path, "r+b") as fh:
+        fh.write(b"\0" * 8)  # no HDF5 signature: nothing of the file can be read
+    messages: list[str] = []
+    from odmd_bench.data.importer import import_release
+
+    import_release(
+        original_release / "odmd" / "test" / "test_normal.pk", paper_copy, progress=messages.append
+    )
+    assert any("cannot be read and is replaced" in m for m in messages), messages
+    assert len(odmd_bench.load("test", "normal", "odmd-paper", paper_copy)) == 3000
+    with pytest.raises(DataError, match="holds no set 'robot'"):
+        odmd_bench.load("test", "robot", "odmd-paper", paper_copy)
+
+
+def test_import_keeps_the_good_sets_of_a_damaged_split(paper_copy: Path, original_release: Path) -> None:
+    path = set_file("odmd-paper", "test", paper_copy)
+    with h5py.File(path, "r+") as f:
+        f["robot/depth"][0] += 1.0
+    messages: list[str] = []
+    from odmd_bench.data.importer import import_release
+
+    import_release(
+        original_release / "odmd" / "test" / "test_normal.pk", paper_copy, progress=messages.append
+    )
+    assert len(messages) == 1 and "dropped the set 'robot'" in messages[0] and "corrupt" in messages[0]
+    with h5py.File(path, "r") as f:
+        assert list(f) == ["normal", "camera", "object"]
+    for s in ("normal", "camera", "object"):
+        odmd_bench.load("test", s, "odmd-paper", paper_copy)
+
+
+# ------------------------------------------------------------ 4: OS failures
+
+
+def _no_temp_left(folder: Path) -> None:
+    assert not [p for p in folder.rglob("*") if p.name.endswith(".tmp")]
+
+
+def test_a_file_size_limit_is_a_clear_error(tmp_path: Path) -> None:
+    import resource
+
+    def limit() -> None:
+        resource.setrlimit(resource.RLIMIT_FSIZE, (2_000_000, resource.RLIM_INFINITY))
+
+    done = _cli("generate", env_data=tmp_path / "d", preexec_fn=limit)
+    _clear_error(done, "cannot write", "File too large", "ulimit -f")
+    errors = [line for line in done.stderr.splitlines() if line.startswith("error:")]
+    assert len(errors) == 1 and len(errors[0]) < 300, done.stderr
+    _no_temp_left(tmp_path / "d")
+    assert not (tmp_path / "d" / "odmd-v1" / "val.h5").exists()
+
+
+@pytest.fixture()
+def small_tmpfs(tmp_path: Path) -> object:
+    """A 3 MB tmpfs (root only, where mounting is allowed), else skip."""
+    mnt = tmp_path / "mnt"
+    mnt.mkdir()
+    if os.geteuid() != 0 or shutil.which("mount") is None:
+        pytest.skip("mounting a small tmpfs needs root")
+    done = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=3m", "tmpfs", str(mnt)], capture_output=True)
+    if done.returncode != 0:
+        pytest.skip(f"cannot mount a tmpfs here: {done.stderr!r}")
+    yield mnt
+    subprocess.run(["umount", str(mnt)], check=True)
+
+
+def test_a_full_disk_is_a_clear_error(small_tmpfs: Path) -> None:
+    done = _cli("generate", env_data=small_tmpfs)
+    _clear_error(done, "No space left on device", "free space")
+    _no_temp_left(small_tmpfs)
+
+
+def test_write_errors_are_storage_errors(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The same, for each cause, by making the final rename fail."""
+    import odmd_bench.data.io as io_mod
+
+    for code, fix in ((errno.ENOSPC, "free space"), (errno.EACCES, "writable"), (errno.EROFS, "read-only")):
+
+        def fail(src: str, dst: str, code: int = code) -> None:
+            raise OSError(code, os.strerror(code), dst)
+
+        monkeypatch.setattr(io_mod.os, "replace", fail)
+        with pytest.raises(StorageError, match=fix) as info:
+            write_sets(tmp_path / "x.h5", {"normal": odmd_bench.generate(3)})
+        assert isinstance(info.value, OSError) and info.value.errno == code
+        assert str(tmp_path / "x.h5") in str(info.value)
+        _no_temp_left(tmp_path)
+        monkeypatch.undo()
+
+
+def test_a_read_only_folder_is_a_clear_error(tmp_path: Path) -> None:
+    d = tmp_path / "ro"
+    d.mkdir()
+    if os.geteuid() == 0:
+        mounted = subprocess.run(
+            ["mount", "-t", "tmpfs", "-o", "ro,size=1m", "tmpfs", str(d)], capture_output=True
+        )
+        if mounted.returncode != 0:
+            pytest.skip("root ignores permissions and cannot mount a read-only tmpfs here")
+        try:
+            done = _cli("generate", env_data=d)
+        finally:
+            subprocess.run(["umount", str(d)], check=True)
+        _clear_error(done, str(d), "read-only")
+    else:
+        d.chmod(0o555)
+        try:
+            done = _cli("generate", env_data=d)
+        finally:
+            d.chmod(0o755)
+        _clear_error(done, str(d), "writable")
+
+
+def test_a_data_folder_that_is_a_file(tmp_path: Path) -> None:
+    f = tmp_path / "file"
+    f.write_text("x")
+    for args in (["generate"], ["baseline", "box-ls", "-o", str(tmp_path / "p.csv")]):
+        _clear_error(_cli(*args, env_data=f), str(f), "ODMD_BENCH_DATA")
+    with pytest.raises(StorageError, match="Not a directory"):
+        odmd_bench.load("val", "normal", data_dir=f)
+
+
+def test_a_data_file_that_is_a_folder(tmp_path: Path) -> None:
+    path = set_file("odmd-v1", "test", tmp_path)
+    path.mkdir(parents=True)
+    with pytest.raises(StorageError, match=r"it is a folder.*rm -r") as info:
+        odmd_bench.load("test", "normal", data_dir=tmp_path)
+    assert isinstance(info.value, IsADirectoryError | OSError) and info.value.errno == errno.EISDIR
+    _clear_error(_cli("generate", "--split", "test", env_data=tmp_path), f"rm -r {path}")
+
+
+def test_a_missing_imported_file_is_a_file_not_found_error(tmp_path: Path) -> None:
+    with pytest.raises(FileNotFoundError, match="odmd-bench import"):
+        odmd_bench.load("test", "normal", "odmd-paper", tmp_path)
+    with pytest.raises(MissingDataError):
+        read_set(tmp_path / "none.h5", "normal")
+
+
+def test_errors_subclass_the_builtins() -> None:
+    from odmd_bench import errors
+
+    assert issubclass(errors.DataError, ValueError) and issubclass(errors.ConfigError, ValueError)
+    assert issubclass(errors.ValidationError, ValueError) and issubclass(errors.UsageError, ValueError)
+    assert issubclass(errors.StorageError, OSError) and issubclass(errors.StorageError, errors.DataError)
+    assert issubclass(errors.MissingDataError, FileNotFoundError)
+    long = errors.DataError("x" * 100_000, ["y" * 100_000])
+    assert len(str(long)) < 2 * errors.MAX_LINE + 100
+
+
+# ------------------------------------------------------ 6: concurrent writers
+
+
+def test_concurrent_imports_keep_both_sets(original_release: Path, tmp_path: Path) -> None:
+    files = [original_release / "odmd" / "val" / f"val_{n}.pk" for n in ("normal", "robot")]
+    script = textwrap.dedent(
+        """
+        import sys, time
+        from odmd_bench.data.importer import import_release
+        start = float(sys.argv[3])
+        while time.time() < start:
+            time.sleep(0.001)
+        import_release(sys.argv[1], sys.argv[2])
+        """
+    )
+    for trial in range(10):
+        d = tmp_path / str(trial)
+        start = time.time() + 0.5  # both processes start importing together
+        procs = [
+            subprocess.Popen(
+                [sys.executable, "-c", script, str(f), str(d), repr(start)], stderr=subprocess.PIPE
+            )
+            for f in files
+        ]
+        for p in procs:
+            _, err = p.communicate()
+            assert p.returncode == 0, err
+        with h5py.File(set_file("odmd-paper", "val", d), "r") as f:
+            assert sorted(f) == ["normal", "robot"], f"trial {trial} lost a set"
+
+
+def test_concurrent_generates_write_once(tmp_path: Path) -> None:
+    procs = [
+        subprocess.Popen(
+            [sys.executable, "-m", "odmd_bench", "generate", "--split", "val", "--out", str(tmp_path)],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        for _ in range(2)
+    ]
+    outs = [p.communicate()[0] for p in procs]
+    assert all(p.returncode == 0 for p in procs)
+    assert sum("(written;" in o for o in outs) >= 1
+    odmd_bench.load("val", "robot", data_dir=tmp_path)
+
+
+# -------------------------------------------------- 11: SIGKILL's temporary files
+
+
+def test_a_sigkilled_writer_leaves_a_temp_file_that_the_next_write_removes(tmp_path: Path) -> None:
+    target = tmp_path / "odmd-v1" / "val.h5"
+    script = textwrap.dedent(
+        """
+        import sys, time
+        from odmd_bench.data.io import atomic_path
+        with atomic_path(sys.argv[1]) as tmp:
+            tmp.write_bytes(b"half" * 1000)
+            print(tmp, flush=True)
+            time.sleep(3600)
+        """
+    )
+    child = subprocess.Popen([sys.executable, "-c", script, str(target)], stdout=subprocess.PIPE, text=True)
+    assert child.stdout is not None
+    tmp = Path(child.stdout.readline().strip())
+    # A live writer's file is not touched by another writer's clean-up.
+    assert clean_stale_temps(target) == [] and tmp.exists()
+    child.send_signal(signal.SIGKILL)
+    child.wait()
+    child.stdout.close()
+    assert tmp.exists() and not target.exists()
+    messages: list[str] = []
+    ensure_generated("odmd-v1", ["val"], tmp_path, progress=messages.append)
+    assert not tmp.exists() and any(str(tmp) in m for m in messages)
+    _no_temp_left(tmp_path)
+
+
+def test_only_stale_temp_files_of_the_target_are_removed(tmp_path: Path) -> None:
+    target = tmp_path / "test.h5"
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    files = {
+        "dead": tmp_path / f".test.h5.{dead.pid}.abcd1234.tmp",
+        "live": tmp_path / f".test.h5.{os.getppid()}.abcd1234.tmp",
+        "old_live": tmp_path / f".test.h5.{os.getppid()}.efgh5678.tmp",
+        "legacy_old": tmp_path / ".test.h5.k2j3h4g5.tmp",
+        "legacy_new": tmp_path / ".test.h5.q1w2e3r4.tmp",
+        "other_target": tmp_path / f".val.h5.{dead.pid}.abcd1234.tmp",
+        "not_ours": tmp_path / "test.h5.tmp",
+    }
+    for p in files.values():
+        p.write_text("x")
+    old = time.time() - 2 * 3600
+    for k in ("old_live", "legacy_old"):
+        os.utime(files[k], (old, old))
+    removed = set(clean_stale_temps(target))
+    assert removed == {files["dead"], files["old_live"], files["legacy_old"]}
