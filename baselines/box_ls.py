@@ -77,37 +77,29 @@ def solve(width: np.ndarray, height: np.ndarray, camera_z: np.ndarray) -> tuple[
     :func:`predict_report`). Inputs may be strided views (``boxes[:, :, 2]``); they are
     copied block by block, so memory stays bounded and the temporaries stay in cache.
 
-    Parameters
-    ----------
-    width, height : ndarray of shape (N, n_obs)
-        Box width and height per observation (normalised; any common unit works).
-    camera_z : ndarray of shape (N, n_obs)
-        Camera ``z`` position per observation, metres; only differences to the last
-        observation matter.
-
-    Returns
-    -------
-    depth : ndarray of shape (N,)
-        The least-squares ``Z_n``; undefined (any value, possibly NaN) where
-        ``singular`` is True.
-    singular : ndarray of shape (N,), bool
-        True where the box sizes are constant to rounding, so that ``A`` is rank
-        deficient: ``sum(w'^2 + h'^2) <= (2 n_obs eps)^2 sum(w^2 + h^2)``.
-
-    Notes
-    -----
     With ``w'`` the centred widths (``w - mean(w)``, likewise ``h'``) and
     ``u = w' w + h' h``, ``Z = sum(u C_Z) / sum(w'^2 + h'^2) - C_Zn``, using
     ``sum(u) = sum(w'^2 + h'^2)`` so that the camera positions need no shift.
 
-    Examples
-    --------
-    >>> import numpy as np
-    >>> cz = np.array([[0.5, 0.2, 0.0]])  # camera z per observation, the last at 0
-    >>> w = 0.1 / (1.0 - cz)              # w_k = fx W / Z_k with Z_k = Z_n - C_Zk, Z_n = 1
-    >>> depth, singular = solve(w, 2 * w, cz)
-    >>> round(float(depth[0]), 12), bool(singular[0])
-    (1.0, False)
+    Args:
+        width: (N, n_obs) box width per observation (normalised; any common unit works).
+        height: (N, n_obs) box height per observation, in the same unit.
+        camera_z: (N, n_obs) camera ``z`` position per observation, metres; only
+            differences to the last observation matter.
+
+    Returns:
+        ``(depth, singular)``: ``depth`` (N,) is the least-squares ``Z_n``, undefined
+        (any value, possibly NaN) where ``singular`` is True; ``singular`` (N,) bool is
+        True where the box sizes are constant to rounding, so that ``A`` is rank
+        deficient: ``sum(w'^2 + h'^2) <= (2 n_obs eps)^2 sum(w^2 + h^2)``.
+
+    Example:
+        >>> import numpy as np
+        >>> cz = np.array([[0.5, 0.2, 0.0]])  # camera z per observation, the last at 0
+        >>> w = 0.1 / (1.0 - cz)  # w_k = fx W / Z_k with Z_k = Z_n - C_Zk, Z_n = 1
+        >>> depth, singular = solve(w, 2 * w, cz)
+        >>> round(float(depth[0]), 12), bool(singular[0])
+        (1.0, False)
     """
     width = np.asarray(width, dtype=np.float64)
     height = np.asarray(height, dtype=np.float64)
@@ -146,19 +138,18 @@ def predict_report(
 ) -> tuple[np.ndarray, dict[str, int]]:
     """Box_LS depths and how many examples used each fallback.
 
-    Parameters
-    ----------
-    examples : odmd_bench.Examples
-        ``N`` examples.
-    fallback_depth : float
-        Depth (metres) for examples whose system cannot be solved (module docstring).
+    Args:
+        examples: ``N`` examples.
+        fallback_depth: Depth (metres) for examples whose system cannot be solved
+            (module docstring).
 
-    Returns
-    -------
-    depths : ndarray of shape (N,)
-        Finite depth estimates at the last observation, metres.
-    fallbacks : dict
-        ``{reason: count}`` for every reason in :data:`FALLBACKS` (zeros included).
+    Returns:
+        ``(depths, fallbacks)``: ``depths`` (N,) finite depth estimates at the last
+        observation, metres; ``fallbacks`` ``{reason: count}`` for every reason in
+        :data:`FALLBACKS` (zeros included).
+
+    Raises:
+        odmd_bench.UsageError: If ``fallback_depth`` is not finite.
     """
     fallback_depth = float(fallback_depth)
     if not np.isfinite(fallback_depth):
@@ -196,23 +187,18 @@ def predict_report(
 def predict(examples: odmd_bench.Examples, fallback_depth: float = DEFAULT_FALLBACK_DEPTH) -> np.ndarray:
     """Box_LS depth at the last observation for every example.
 
-    Parameters
-    ----------
-    examples : odmd_bench.Examples
-        ``N`` examples.
-    fallback_depth : float
-        Depth for examples whose system cannot be solved (see the module docstring).
+    Args:
+        examples: ``N`` examples.
+        fallback_depth: Depth for examples whose system cannot be solved (see the module
+            docstring).
 
-    Returns
-    -------
-    ndarray of shape (N,)
-        Finite depths in metres.
+    Returns:
+        (N,) finite depths in metres.
 
-    Examples
-    --------
-    >>> import odmd_bench
-    >>> ex = odmd_bench.generate(4, perturbation="normal", rng=0)
-    >>> bool(abs(predict(ex) - ex.depth).max() < 1e-9)
-    True
+    Example:
+        >>> import odmd_bench
+        >>> ex = odmd_bench.generate(4, perturbation="normal", rng=0)
+        >>> bool(abs(predict(ex) - ex.depth).max() < 1e-9)
+        True
     """
     return predict_report(examples, fallback_depth)[0]

@@ -68,24 +68,22 @@ def predict_report(
 ) -> tuple[np.ndarray, dict[str, int]]:
     """Two-observation optical-expansion depths and how many examples used each fallback.
 
-    Parameters
-    ----------
-    examples : odmd_bench.Examples
-        ``N`` examples.
-    fill : {"endpoints", "all"}
-        Missing-box rule (module docstring); ``"endpoints"`` reproduces the paper.
-    fallback_depth : float
-        Depth (metres) where there is no detection or the width solution is not finite.
-    combine : {"mean", "lsq"}
-        How the width and height solutions are combined (module docstring);
-        ``"mean"`` reproduces the paper.
+    Args:
+        examples: ``N`` examples.
+        fill: Missing-box rule, ``"endpoints"`` or ``"all"`` (module docstring);
+            ``"endpoints"`` reproduces the paper.
+        fallback_depth: Depth (metres) where there is no detection or the width
+            solution is not finite.
+        combine: How the width and height solutions are combined, ``"mean"`` or
+            ``"lsq"`` (module docstring); ``"mean"`` reproduces the paper.
 
-    Returns
-    -------
-    depths : ndarray of shape (N,)
-        Finite depth estimates at the last observation, metres.
-    fallbacks : dict
-        ``{reason: count}`` for every reason in :data:`FALLBACKS` (zeros included).
+    Returns:
+        ``(depths, fallbacks)``: ``depths`` (N,) finite depth estimates at the last
+        observation, metres; ``fallbacks`` ``{reason: count}`` for every reason in
+        :data:`FALLBACKS` (zeros included).
+
+    Raises:
+        odmd_bench.UsageError: If ``fill``, ``combine`` or ``fallback_depth`` is invalid.
     """
     fallback_depth = float(fallback_depth)
     if not np.isfinite(fallback_depth):
@@ -110,27 +108,20 @@ def predict(
 ) -> np.ndarray:
     """Two-observation optical-expansion depth at the last observation for every example.
 
-    Parameters
-    ----------
-    examples : odmd_bench.Examples
-        ``N`` examples.
-    fill : {"endpoints", "all"}
-        Missing-box rule (module docstring); ``"endpoints"`` reproduces the paper.
-    fallback_depth : float
-        Depth for the fallbacks of the module docstring (1 m, as the original release).
-    combine : {"mean", "lsq"}
-        ``"mean"`` (the paper) or the opt-in least-squares combination.
+    Args:
+        examples: ``N`` examples.
+        fill: Missing-box rule, ``"endpoints"`` (the paper) or ``"all"``.
+        fallback_depth: Depth for the fallbacks of the module docstring (1 m, as the
+            original release).
+        combine: ``"mean"`` (the paper) or the opt-in least-squares ``"lsq"``.
 
-    Returns
-    -------
-    ndarray of shape (N,)
-        Finite depths in metres.
+    Returns:
+        (N,) finite depths in metres.
 
-    Examples
-    --------
-    >>> import odmd_bench
-    >>> ex = odmd_bench.generate(4, perturbation="normal", rng=0)
-    >>> bool(abs(predict(ex) - ex.depth).max() < 1e-9)
-    True
+    Example:
+        >>> import odmd_bench
+        >>> ex = odmd_bench.generate(4, perturbation="normal", rng=0)
+        >>> bool(abs(predict(ex) - ex.depth).max() < 1e-9)
+        True
     """
     return predict_report(examples, fill, fallback_depth, combine)[0]

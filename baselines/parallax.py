@@ -89,20 +89,19 @@ def check_combine(combine: str) -> None:
 def endpoint_boxes(examples: odmd_bench.Examples, fill: Fill = "endpoints") -> tuple[np.ndarray, np.ndarray]:
     """Boxes of the first and last observation, missing ones filled.
 
-    Parameters
-    ----------
-    examples : odmd_bench.Examples
-        ``N`` examples.
-    fill : {"endpoints", "all"}
-        Where a missing end-point box comes from: the other end point (the paper's
-        rule) or the nearest detected observation among all ``n``.
+    Args:
+        examples: ``N`` examples.
+        fill: Where a missing end-point box comes from: ``"endpoints"``, the other end
+            point (the paper's rule), or ``"all"``, the nearest detected observation
+            among all ``n``.
 
-    Returns
-    -------
-    boxes : ndarray of shape (N, 2, 4)
-        ``x, y, w, h`` of the first and the last observation.
-    none : ndarray of shape (N,), bool
-        True where no box was available (the boxes there are meaningless).
+    Returns:
+        ``(boxes, none)``: ``boxes`` (N, 2, 4) ``x, y, w, h`` of the first and the last
+        observation; ``none`` (N,) bool, True where no box was available (the boxes
+        there are meaningless).
+
+    Raises:
+        odmd_bench.UsageError: If ``fill`` is not one of :data:`FILLS`.
     """
     if fill not in FILLS:
         raise odmd_bench.UsageError(f"unknown fill {fill!r}; expected one of {', '.join(FILLS)}")
@@ -127,29 +126,23 @@ def predict_report(
 ) -> tuple[np.ndarray, dict[str, int]]:
     """Two-observation motion-parallax depths and how many examples used each fallback.
 
-    Parameters
-    ----------
-    examples : odmd_bench.Examples
-        ``N`` examples of a set that carries camera intrinsics.
-    fill : {"endpoints", "all"}
-        Missing-box rule (module docstring); ``"endpoints"`` reproduces the paper.
-    fallback_depth : float
-        Depth (metres) where there is no detection or the lateral solution is not finite.
-    combine : {"mean", "lsq"}
-        How the lateral and vertical solutions are combined (module docstring);
-        ``"mean"`` reproduces the paper.
+    Args:
+        examples: ``N`` examples of a set that carries camera intrinsics.
+        fill: Missing-box rule, ``"endpoints"`` or ``"all"`` (module docstring);
+            ``"endpoints"`` reproduces the paper.
+        fallback_depth: Depth (metres) where there is no detection or the lateral
+            solution is not finite.
+        combine: How the lateral and vertical solutions are combined, ``"mean"`` or
+            ``"lsq"`` (module docstring); ``"mean"`` reproduces the paper.
 
-    Returns
-    -------
-    depths : ndarray of shape (N,)
-        Finite depth estimates at the last observation, metres.
-    fallbacks : dict
-        ``{reason: count}`` for every reason in :data:`FALLBACKS` (zeros included).
+    Returns:
+        ``(depths, fallbacks)``: ``depths`` (N,) finite depth estimates at the last
+        observation, metres; ``fallbacks`` ``{reason: count}`` for every reason in
+        :data:`FALLBACKS` (zeros included).
 
-    Raises
-    ------
-    odmd_bench.DataError
-        If the set carries no camera intrinsics.
+    Raises:
+        odmd_bench.DataError: If the set carries no camera intrinsics.
+        odmd_bench.UsageError: If ``fill``, ``combine`` or ``fallback_depth`` is invalid.
     """
     fallback_depth = float(fallback_depth)
     if not np.isfinite(fallback_depth):
@@ -212,27 +205,20 @@ def predict(
 ) -> np.ndarray:
     """Two-observation motion-parallax depth at the last observation for every example.
 
-    Parameters
-    ----------
-    examples : odmd_bench.Examples
-        ``N`` examples of a set that carries camera intrinsics.
-    fill : {"endpoints", "all"}
-        Missing-box rule (module docstring); ``"endpoints"`` reproduces the paper.
-    fallback_depth : float
-        Depth for the fallbacks of the module docstring (1 m, as the original release).
-    combine : {"mean", "lsq"}
-        ``"mean"`` (the paper) or the opt-in least-squares combination.
+    Args:
+        examples: ``N`` examples of a set that carries camera intrinsics.
+        fill: Missing-box rule, ``"endpoints"`` (the paper) or ``"all"``.
+        fallback_depth: Depth for the fallbacks of the module docstring (1 m, as the
+            original release).
+        combine: ``"mean"`` (the paper) or the opt-in least-squares ``"lsq"``.
 
-    Returns
-    -------
-    ndarray of shape (N,)
-        Finite depths in metres.
+    Returns:
+        (N,) finite depths in metres.
 
-    Examples
-    --------
-    >>> import odmd_bench
-    >>> ex = odmd_bench.generate(4, perturbation="normal", rng=0)
-    >>> bool(abs(predict(ex) - ex.depth).max() < 1e-9)
-    True
+    Example:
+        >>> import odmd_bench
+        >>> ex = odmd_bench.generate(4, perturbation="normal", rng=0)
+        >>> bool(abs(predict(ex) - ex.depth).max() < 1e-9)
+        True
     """
     return predict_report(examples, fill, fallback_depth, combine)[0]

@@ -104,6 +104,7 @@ def run_trial(trial: Trial, data: Mapping[str, Mapping[str, Examples]]) -> dict[
 
 
 def describe(trial: Trial) -> dict[str, str]:
+    """A trial's settings as the text columns of the results table."""
     p = trial.params
     models = ";".join(f"{m.sigma_box:g}/{m.sigma_camera:g}/{m.penalty:g}" for m in p.noise_models)
     return {
@@ -151,6 +152,7 @@ def search(
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """Run the search from the command line; the exit status."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument(
         "--benchmark",

@@ -1,8 +1,8 @@
-"""Box_LS throughput: the batched closed-form solve against a per-example lstsq loop.
+r"""Box_LS throughput: the batched closed-form solve against a per-example lstsq loop.
 
 Run (one core: keep OpenBLAS to one thread):
 
-    OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 .venv/bin/pytest benchmarks/bench_box_ls.py \\
+    OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 .venv/bin/pytest benchmarks/bench_box_ls.py \
         --benchmark-only -p no:randomly --benchmark-columns=min,median,ops -s
 
 The reference is what the original release does: build the paper's ``A`` (2 n x 3) and
@@ -14,8 +14,6 @@ perturbation both, seed 0) with 2% of the examples missing one box, so that
 """
 
 from __future__ import annotations
-
-import time
 
 import numpy as np
 import pytest
@@ -78,22 +76,13 @@ def test_reference_lstsq_loop(benchmark, examples: odmd_bench.Examples) -> None:
 
 
 @pytest.mark.benchmark(disable_gc=True)
-def test_ratio(benchmark, examples: odmd_bench.Examples) -> None:
+def test_ratio(benchmark, examples: odmd_bench.Examples, best_of) -> None:
     """Both in one run: batched examples/s divided by reference examples/s (best of rounds)."""
-
-    def best(fn, rounds: int) -> float:
-        times = []
-        for _ in range(rounds):
-            t = time.perf_counter()
-            fn()
-            times.append(time.perf_counter() - t)
-        return min(times)
-
     b, cz = examples.boxes, examples.camera[:, :, 2]
     part = examples.subset(slice(0, REFERENCE_BATCH))
-    solve = BATCH / best(lambda: box_ls.solve(b[:, :, 2], b[:, :, 3], cz), 10)
-    whole = BATCH / best(lambda: box_ls.predict_report(examples), 10)
-    slow = REFERENCE_BATCH / best(lambda: reference_box_ls(part), 3)
+    solve = BATCH / best_of(lambda: box_ls.solve(b[:, :, 2], b[:, :, 3], cz), 10)
+    whole = BATCH / best_of(lambda: box_ls.predict_report(examples), 10)
+    slow = REFERENCE_BATCH / best_of(lambda: reference_box_ls(part), 3)
     benchmark.extra_info.update(
         solve_per_s=solve,
         predict_report_per_s=whole,

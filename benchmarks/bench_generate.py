@@ -16,8 +16,6 @@ first (torch, big arrays) the same code measures up to 1.6x faster; so does sett
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 import pytest
 
@@ -103,8 +101,10 @@ def test_stream_normal(benchmark) -> None:
 
 
 def test_floor_normal_draws(benchmark) -> None:
-    """The Gaussian draws alone that perturbation "both" needs (67 per example with
-    n_obs = 10): numpy's exact ziggurat sampler sets this floor on the stream's time."""
+    """The Gaussian draws alone that perturbation "both" needs (67 per example with n_obs = 10).
+
+    numpy's exact ziggurat sampler sets this floor on the stream's time.
+    """
     rng = np.random.Generator(np.random.SFC64(0))
     benchmark(lambda: (rng.standard_normal((BATCH, 9, 3)), rng.standard_normal((BATCH, 10, 4))))
     benchmark.extra_info["examples_per_second"] = BATCH / benchmark.stats.stats.min
@@ -117,20 +117,11 @@ def test_reference(benchmark) -> None:
 
 
 @pytest.mark.benchmark(disable_gc=True)
-def test_ratio(benchmark) -> None:
+def test_ratio(benchmark, best_of) -> None:
     """Both in one run: stream examples/s divided by reference examples/s (best of rounds)."""
-
-    def best(fn, rounds: int) -> float:
-        times = []
-        for _ in range(rounds):
-            t = time.perf_counter()
-            fn()
-            times.append(time.perf_counter() - t)
-        return min(times)
-
     batches = stream(BATCH, "odmd", "both", rng=1)
-    fast = BATCH / best(lambda: next(batches), 15)
-    slow = 2_000 / best(lambda: reference_generate(2_000, 1), 3)
+    fast = BATCH / best_of(lambda: next(batches), 15)
+    slow = 2_000 / best_of(lambda: reference_generate(2_000, 1), 3)
     benchmark.extra_info.update(stream_per_s=fast, reference_per_s=slow, ratio=fast / slow)
     print(f"\nstream {fast:,.0f}/s  reference {slow:,.0f}/s  ratio {fast / slow:.1f}x")
     benchmark.pedantic(lambda: None, rounds=1)

@@ -1,13 +1,13 @@
-"""``predict`` throughput: parsing a sequences CSV and solving Box_LS on it.
+r"""``predict`` throughput: parsing a sequences CSV and solving Box_LS on it.
 
 Run (one core: keep OpenBLAS to one thread):
 
-    OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 .venv/bin/pytest benchmarks/bench_predict.py \\
+    OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 .venv/bin/pytest benchmarks/bench_predict.py \
         --benchmark-only -p no:randomly --benchmark-columns=min,median,ops -s
 
 The file: 100,000 sequences of 10 observations (1,000,000 rows, about 90 MB) made from
 ODMD examples (preset odmd, perturbation both, seed 0), 2% of the boxes missed (and the
-few boxes of width or height <= 0 made by the box noise missed too), numbers written with ``repr`` precision (:func:`odmd_bench.data.pixels.format_sequences`).
+few boxes of width or height <= 0 made by the box noise missed too), numbers written with ``repr`` precision (:func:`~odmd_bench.data.sequences.format_sequences`).
 Rates are sequences per second = 100,000 / best time:
 
 * ``test_parse``: :func:`read_sequences` on the file's bytes, strict checks and
@@ -28,7 +28,8 @@ import pytest
 from odmd_bench_baselines import box_ls
 
 import odmd_bench
-from odmd_bench.data import pixels
+from odmd_bench.data.sequences import Sequences, format_sequences, read_sequences
+from odmd_bench.predict import predict_sequences
 
 N = 100_000
 SIZE = (640, 480)
@@ -42,12 +43,12 @@ def data() -> bytes:
     # reader refuses): such a box counts as missed too.
     det &= (ex.boxes[:, :, 2] > 0) & (ex.boxes[:, :, 3] > 0)
     ex = dataclasses.replace(ex, detected=det, boxes=np.where(det[..., None], ex.boxes, 0.0))
-    return pixels.format_sequences(ex).encode()
+    return format_sequences(ex).encode()
 
 
 @pytest.fixture(scope="module")
-def sequences(data: bytes) -> pixels.Sequences:
-    return pixels.read_sequences(data, SIZE)
+def sequences(data: bytes) -> Sequences:
+    return read_sequences(data, SIZE)
 
 
 def _rate(benchmark: object) -> None:
@@ -57,7 +58,7 @@ def _rate(benchmark: object) -> None:
 
 
 def test_parse(benchmark, data: bytes) -> None:
-    seqs = benchmark.pedantic(pixels.read_sequences, args=(data, SIZE), rounds=3, iterations=1)
+    seqs = benchmark.pedantic(read_sequences, args=(data, SIZE), rounds=3, iterations=1)
     assert len(seqs) == N and seqs.examples().n_obs == 10
     benchmark.extra_info["megabytes"] = len(data) / 1e6
     _rate(benchmark)
@@ -65,19 +66,19 @@ def test_parse(benchmark, data: bytes) -> None:
 
 def test_parse_careful(benchmark, data: bytes) -> None:
     blank = data.replace(b"\n", b"\n\n", 1)
-    seqs = benchmark.pedantic(pixels.read_sequences, args=(blank, SIZE), rounds=1, iterations=1)
+    seqs = benchmark.pedantic(read_sequences, args=(blank, SIZE), rounds=1, iterations=1)
     assert len(seqs) == N
     _rate(benchmark)
 
 
-def test_solve(benchmark, sequences: pixels.Sequences) -> None:
+def test_solve(benchmark, sequences: Sequences) -> None:
     ex = sequences.examples()
     depth, _ = benchmark.pedantic(box_ls.predict_report, args=(ex,), rounds=10, iterations=1)
     assert depth.shape == (N,)
     _rate(benchmark)
 
 
-def test_predict_sequences(benchmark, sequences: pixels.Sequences) -> None:
-    result = benchmark.pedantic(pixels.predict_sequences, args=(sequences, "box-ls"), rounds=5, iterations=1)
+def test_predict_sequences(benchmark, sequences: Sequences) -> None:
+    result = benchmark.pedantic(predict_sequences, args=(sequences, "box-ls"), rounds=5, iterations=1)
     assert result.depth.shape == (N,)
     _rate(benchmark)

@@ -11,7 +11,7 @@ Importing the package loads numpy and h5py only; torch is needed by DBox alone.
 from odmd_bench.data.config import PRESETS, CameraConfig, GeneratorConfig
 from odmd_bench.data.examples import Examples, fill_missing, nearest_detected_index
 from odmd_bench.data.generator import GENERATOR_VERSION, generate, stream
-from odmd_bench.data.pixels import predict_sequences, read_sequences
+from odmd_bench.data.sequences import read_sequences
 from odmd_bench.data.store import ensure_generated, load, load_split
 from odmd_bench.errors import (
     ConfigError,
@@ -27,6 +27,7 @@ from odmd_bench.evaluation.parse import ParsedPredictions, parse_predictions
 from odmd_bench.evaluation.predictions import write_predictions
 from odmd_bench.evaluation.result import EvaluationResult
 from odmd_bench.evaluation.scoring import evaluate
+from odmd_bench.predict import predict_sequences
 
 __version__ = "0.1.0"
 

@@ -27,8 +27,9 @@ DISTRIBUTION = "odmd-bench"
 def install_hint(extra: str) -> str:
     """The command that installs ``extra``, quoted for every shell.
 
-    >>> install_hint("dbox")
-    "pip install 'odmd-bench[dbox]'"
+    Example:
+        >>> install_hint("dbox")
+        "pip install 'odmd-bench[dbox]'"
     """
     return f"pip install '{DISTRIBUTION}[{extra}]'"
 
@@ -60,8 +61,9 @@ def require(module: str, extra: str, purpose: str = "this command") -> ModuleTyp
 def is_installed(module: str) -> bool:
     """Whether ``module`` can be imported (without importing it, except its parents).
 
-    >>> is_installed("math"), is_installed("no_such_module_here")
-    (True, False)
+    Example:
+        >>> is_installed("math"), is_installed("no_such_module_here")
+        (True, False)
     """
     if module in sys.modules:
         return sys.modules[module] is not None  # None: imports of it are blocked

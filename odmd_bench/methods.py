@@ -187,8 +187,11 @@ def _source(ep: metadata.EntryPoint) -> str:
 
 
 def _missing(error: ModuleNotFoundError, name: str, target: str = "") -> Exception:
-    """A module that is not installed as a usage error naming what provides it; a module
-    that is installed but failed to import is a bug, re-raised as it is."""
+    """The error to raise for a failed import of method ``name``'s module.
+
+    A module that is not installed becomes a usage error naming what provides it; a module
+    that is installed but failed to import is a bug, returned as it is to be re-raised.
+    """
     missing = error.name or ""
     if target and (target + ".").startswith(missing + "."):
         return UsageError(f"method {name!r} is not available: its module {target} is not installed")

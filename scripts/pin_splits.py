@@ -22,8 +22,9 @@ from pathlib import Path
 from typing import Any
 
 from odmd_bench.data.generator import GENERATOR_VERSION, generate
+from odmd_bench.data.hashing import content_sha256, group_attrs, set_arrays
 from odmd_bench.data.importer import find_originals, read_original
-from odmd_bench.data.io import content_sha256, group_attrs, set_arrays, write_sets
+from odmd_bench.data.io import write_sets
 from odmd_bench.data.manifests import read_manifest
 from odmd_bench.data.registry import BENCHMARKS
 

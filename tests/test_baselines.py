@@ -1,6 +1,8 @@
-"""The analytical baselines (Box_LS, two-observation parallax and expansion) and the
-``baseline`` command: exact on clean data, their fallbacks on degenerate data, and the
-paper's numbers on the original release."""
+"""The analytical baselines (Box_LS, two-observation parallax and expansion) and ``baseline``.
+
+Exact on clean data, their fallbacks on degenerate data, and the paper's numbers on the
+original release.
+"""
 
 from __future__ import annotations
 
@@ -124,8 +126,11 @@ def test_box_ls_does_not_depend_on_where_the_camera_origin_is() -> None:
 
 
 def degenerate_examples() -> odmd_bench.Examples:
-    """Six examples: 0 fine, 1 no detection, 2 one detection, 3 no z motion,
-    4 constant boxes with several detections, 5 NaN in a detected box."""
+    """Six examples, one per Box_LS fallback and one fine.
+
+    0 fine, 1 no detection, 2 one detection, 3 no z motion, 4 constant boxes with several
+    detections, 5 NaN in a detected box.
+    """
     base = odmd_bench.generate(6, perturbation="object", rng=1)
     boxes, detected, camera = base.boxes.copy(), base.detected.copy(), base.camera.copy()
     detected[:] = True
@@ -199,9 +204,11 @@ def test_box_ls_single_detection_anywhere_is_a_fallback() -> None:
 
 
 def endpoint_examples() -> odmd_bench.Examples:
-    """Five examples for the two-observation methods: 0 fine, 1 no end point detected
-    (the middle ones are), 2 only the first detected, 3 y (and h) equal at the end
-    points, 4 only the last detected."""
+    """Five examples for the two-observation methods.
+
+    0 fine, 1 no end point detected (the middle ones are), 2 only the first detected,
+    3 y (and h) equal at the end points, 4 only the last detected.
+    """
     base = odmd_bench.generate(5, perturbation="normal", rng=6)
     boxes, detected = base.boxes.copy(), base.detected.copy()
     detected[1, [0, -1]] = False
@@ -388,7 +395,9 @@ def test_paper_box_ls_test_details(paper_data_dir: Path) -> None:
             std,
         ), name
         assert sum(counts.values()) == (4 if name == "robot" else 0)
-    assert int((box_ls.predict(sets["object"]) < 0).sum()) == 86  # CONTRACT section 4
+    assert (
+        int((box_ls.predict(sets["object"]) < 0).sum()) == 86
+    )  # docs/format.md#validation: negative depths are legal
 
 
 def test_paper_box_ls_odms_detection_val(paper_data_dir: Path) -> None:

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import doctest
 from pathlib import Path
 
 import numpy as np
@@ -12,7 +11,6 @@ import odmd_bench
 from odmd_bench import UsageError, ValidationError
 from odmd_bench.data.io import write_sets
 from odmd_bench.data.registry import set_file
-from odmd_bench.evaluation import compare
 from odmd_bench.evaluation.compare import (
     A_BETTER,
     B_BETTER,
@@ -172,8 +170,3 @@ def test_compare_results_refuses_different_splits(data: Path, tmp_path: Path) ->
     rb = evaluate(_preds(tmp_path, "b.csv", 0.1, 1, split="val"), benchmark="odmd-paper")
     with pytest.raises(UsageError, match="cannot be compared"):
         compare_results(ra, rb)
-
-
-def test_docstring_examples_run() -> None:
-    result = doctest.testmod(compare)
-    assert result.attempted >= 3 and result.failed == 0

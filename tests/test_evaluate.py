@@ -464,10 +464,13 @@ def test_near_valid_csvs_raise_only_package_errors(tmp_path: Path, data: bytes) 
 
 
 def box_ls(ex: Examples) -> np.ndarray:
-    """The paper's Box_LS, per example with np.linalg.lstsq, computed here on purpose
-    (independently of ``baselines/``): A x = b with rows ``[w_j, 1, 0]``, ``[h_j, 0, 1]``
-    and ``b_j = w_j C_Zj``, ``h_j C_Zj`` (camera relative to the last observation);
-    missing boxes filled by the shared rule; depth 0 with at most one detection."""
+    """The paper's Box_LS, per example with np.linalg.lstsq.
+
+    Computed here on purpose (independently of ``baselines/``): A x = b with rows
+    ``[w_j, 1, 0]``, ``[h_j, 0, 1]`` and ``b_j = w_j C_Zj``, ``h_j C_Zj`` (camera relative
+    to the last observation); missing boxes filled by the shared rule; depth 0 with at
+    most one detection.
+    """
     b = fill_missing(ex.boxes, ex.detected)
     n, k = len(ex), ex.n_obs
     w, h, cz = b[:, :, 2], b[:, :, 3], ex.camera[:, :, 2]

@@ -8,7 +8,7 @@ import pytest
 import odmd_bench
 from odmd_bench import generate
 from odmd_bench.data.config import PRESETS, GeneratorConfig
-from odmd_bench.data.io import content_sha256, set_arrays
+from odmd_bench.data.hashing import content_sha256, set_arrays
 
 
 @pytest.mark.parametrize("preset", ["odmd", "odms"])
@@ -135,8 +135,10 @@ def _same(a: odmd_bench.Examples, b: odmd_bench.Examples) -> bool:
 
 @pytest.mark.parametrize("perturbation", ["normal", "camera", "object", "both"])
 def test_stream_batches_are_successive_generate_calls(perturbation: str) -> None:
-    """The stream reuses its temporaries between batches; the numbers must not notice, and
-    a batch already handed out must not change when the next one is made."""
+    """The stream reuses its temporaries between batches; the numbers must not notice.
+
+    A batch already handed out must not change when the next one is made.
+    """
     batches = odmd_bench.stream(300, perturbation=perturbation, rng=11)
     first = next(batches)
     kept = first.boxes.copy(), first.camera.copy(), first.depth.copy()

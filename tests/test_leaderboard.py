@@ -92,8 +92,10 @@ def _check(root: Path, data_dir: Path) -> list[str]:
 
 
 def _bump_camera_digit(path: Path, row_start: str) -> tuple[int, str, str]:
-    """Change the last digit of the Camera cell (4th) of the first row starting with
-    ``row_start`` in a markdown file; returns (line index, old cell, new cell)."""
+    """Change the last digit of the Camera cell (4th) of the first row starting with ``row_start``.
+
+    Returns (line index, old cell, new cell).
+    """
     lines = path.read_text().splitlines(keepends=True)
     i = next(k for k, line in enumerate(lines) if line.startswith(row_start))
     cells = lines[i].split(" | ")
@@ -150,81 +152,6 @@ def test_rank_groups_distinct_methods_get_distinct_groups() -> None:
     x = np.linspace(1, 2, 300)
     ranked = lb.rank_groups({"a": {"s": x}, "b": {"s": x + 1}, "c": {"s": x + 2}}, n_resamples=FAST)
     assert [r.group for r in ranked] == [1, 2, 3]
-
-
-# ----------------------------------------------------------------------------- metadata
-
-
-def _entry_folder(
-    tmp_path: Path, meta: dict[str, object], method: str = "m", name: str = "odmd-v1-test"
-) -> Path:
-    folder = tmp_path / "leaderboard" / lb.ENTRIES / method / name
-    folder.mkdir(parents=True)
-    (folder / "predictions.csv").write_text("split,set,index,depth\n")
-    (folder / "entry.yaml").write_text(yaml.safe_dump(meta))
-    return folder
-
-
-def _good_meta() -> dict[str, object]:
-    return {
-        "method": "m",
-        "name": "M",
-        "description": "d",
-        "paper": "none",
-        "code": "https://example.org",
-        "training_data": "none",
-        "command": "cmd",
-        "date": "2026-01-02",
-        "benchmark": "odmd-v1",
-        "split": "test",
-        "calibrated": True,
-        "sets_content_sha256": {s: "a" * 64 for s in ("normal", "camera", "object", "robot")},
-        "predictions": "predictions.csv",
-    }
-
-
-def test_complete_metadata_is_read(tmp_path: Path) -> None:
-    entry = lb.read_entry(_entry_folder(tmp_path, _good_meta()))
-    assert entry.key == "m/odmd-v1-test" and entry.meta.calibrated is True
-    assert isinstance(entry.meta, lb.EntryMeta) and entry.meta.to_dict() == _good_meta()
-    assert entry.predictions.name == "predictions.csv"
-
-
-def test_incomplete_metadata_names_every_problem(tmp_path: Path) -> None:
-    meta = _good_meta()
-    del meta["command"]
-    meta["paper"] = ""
-    meta["date"] = "22/11/2026"
-    meta["calibrated"] = "yes"
-    meta["colour"] = "blue"
-    meta["sets_content_sha256"] = {"normal": "abc"}
-    with pytest.raises(ValidationError) as info:
-        lb.read_entry(_entry_folder(tmp_path, meta))
-    text = info.value.render()
-    for expected in (
-        "missing field 'command'",
-        "missing field 'paper'",
-        "date '22/11/2026' is not a date",
-        "calibrated must be true or false",
-        "unknown field 'colour'",
-        "lacks the sets camera, object, robot",
-        "sets_content_sha256 of 'normal' is not 64",
-    ):
-        assert expected in text
-
-
-def test_metadata_must_match_its_folder(tmp_path: Path) -> None:
-    with pytest.raises(ValidationError, match="does not match its folder"):
-        lb.read_entry(_entry_folder(tmp_path, _good_meta(), method="other"))
-
-
-def test_json_metadata_and_a_missing_predictions_file(tmp_path: Path) -> None:
-    folder = _entry_folder(tmp_path, _good_meta())
-    (folder / "entry.yaml").unlink()
-    meta = _good_meta() | {"predictions": "nope.csv.gz"}
-    (folder / "entry.json").write_text(json.dumps(meta))
-    with pytest.raises(ValidationError, match="predictions file nope.csv.gz is not in the entry folder"):
-        lb.read_entry(folder)
 
 
 # ----------------------------------------------------------------------------- build and check

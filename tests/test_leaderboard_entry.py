@@ -1,5 +1,8 @@
-"""Entry metadata and the hardening of what an entry may hold: bounded YAML without
-aliases, no symbolic links, code paths inside the repository, dates, bounded text."""
+"""Entry metadata and the hardening of what an entry may hold.
+
+Bounded YAML without aliases, no symbolic links, code paths inside the repository, dates,
+bounded text.
+"""
 
 from __future__ import annotations
 
@@ -65,6 +68,63 @@ def _problems(folder: Path) -> str:
     with pytest.raises(ValidationError) as info:
         lb.read_entry(folder)
     return info.value.render()
+
+
+# ----------------------------------------------------------------------------- metadata
+
+
+def _entry_folder(
+    tmp_path: Path, meta: dict[str, object], method: str = "m", name: str = "odmd-v1-test"
+) -> Path:
+    folder = tmp_path / "leaderboard" / lb.ENTRIES / method / name
+    folder.mkdir(parents=True)
+    (folder / "predictions.csv").write_text("split,set,index,depth\n")
+    (folder / "entry.yaml").write_text(yaml.safe_dump(meta))
+    return folder
+
+
+def test_complete_metadata_is_read(tmp_path: Path) -> None:
+    entry = lb.read_entry(_entry_folder(tmp_path, _good_meta()))
+    assert entry.key == "m/odmd-v1-test" and entry.meta.calibrated is True
+    assert isinstance(entry.meta, lb.EntryMeta) and entry.meta.to_dict() == _good_meta()
+    assert entry.predictions.name == "predictions.csv"
+
+
+def test_incomplete_metadata_names_every_problem(tmp_path: Path) -> None:
+    meta = _good_meta()
+    del meta["command"]
+    meta["paper"] = ""
+    meta["date"] = "22/11/2026"
+    meta["calibrated"] = "yes"
+    meta["colour"] = "blue"
+    meta["sets_content_sha256"] = {"normal": "abc"}
+    with pytest.raises(ValidationError) as info:
+        lb.read_entry(_entry_folder(tmp_path, meta))
+    text = info.value.render()
+    for expected in (
+        "missing field 'command'",
+        "missing field 'paper'",
+        "date '22/11/2026' is not a date",
+        "calibrated must be true or false",
+        "unknown field 'colour'",
+        "lacks the sets camera, object, robot",
+        "sets_content_sha256 of 'normal' is not 64",
+    ):
+        assert expected in text
+
+
+def test_metadata_must_match_its_folder(tmp_path: Path) -> None:
+    with pytest.raises(ValidationError, match="does not match its folder"):
+        lb.read_entry(_entry_folder(tmp_path, _good_meta(), method="other"))
+
+
+def test_json_metadata_and_a_missing_predictions_file(tmp_path: Path) -> None:
+    folder = _entry_folder(tmp_path, _good_meta())
+    (folder / "entry.yaml").unlink()
+    meta = _good_meta() | {"predictions": "nope.csv.gz"}
+    (folder / "entry.json").write_text(json.dumps(meta))
+    with pytest.raises(ValidationError, match="predictions file nope.csv.gz is not in the entry folder"):
+        lb.read_entry(folder)
 
 
 # ----------------------------------------------------------------------------- YAML

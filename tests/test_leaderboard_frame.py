@@ -1,5 +1,8 @@
-"""The committed leaderboard as data: the reported table against the paper's LaTeX, and
-``odmd_bench.leaderboard.frame`` (pandas, imported lazily)."""
+"""The committed leaderboard as data.
+
+The reported table against the paper's LaTeX, and ``odmd_bench.leaderboard.frame``
+(pandas, imported lazily).
+"""
 
 from __future__ import annotations
 

@@ -1,5 +1,8 @@
-"""Methods as plug-ins: the entry-point registry, its errors, the options a method takes,
-and a third-party method run by ``odmd-bench baseline`` without touching this package."""
+"""Methods as plug-ins.
+
+The entry-point registry, its errors, the options a method takes, and a third-party
+method run by ``odmd-bench baseline`` without touching this package.
+"""
 
 from __future__ import annotations
 
@@ -209,8 +212,10 @@ def library_names_used(source: str) -> set[str]:
 
 @pytest.mark.parametrize("path", BASELINES, ids=[p.relative_to(ROOT).as_posix() for p in BASELINES])
 def test_the_baselines_use_only_the_public_api(path: Path) -> None:
-    """What a method needs from the library is exported by ``odmd_bench`` (its ``__all__``):
-    the baselines are written as a third-party method would be."""
+    """What a method needs from the library is exported by ``odmd_bench`` (its ``__all__``).
+
+    The baselines are written as a third-party method would be.
+    """
     public = {"odmd_bench"} | {f"odmd_bench.{name}" for name in odmd_bench.__all__}
     private = library_names_used(path.read_text(encoding="utf-8")) - public
     assert not private, f"{path.name} uses what odmd_bench does not export: {sorted(private)}"

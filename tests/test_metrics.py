@@ -2,14 +2,12 @@
 
 from __future__ import annotations
 
-import doctest
 import math
 
 import numpy as np
 import pytest
 
 from odmd_bench import UsageError
-from odmd_bench.evaluation import metrics
 from odmd_bench.evaluation.metrics import (
     STATS,
     absolute_error,
@@ -108,8 +106,3 @@ def test_all_is_the_mean_of_set_means_not_of_examples() -> None:
     assert all_sets_mean(means) == pytest.approx(20.0, rel=1e-14)  # not 15 (example-weighted)
     with pytest.raises(UsageError):
         all_sets_mean({})
-
-
-def test_docstring_examples_run() -> None:
-    result = doctest.testmod(metrics)
-    assert result.attempted >= 6 and result.failed == 0

@@ -1,6 +1,9 @@
-"""Packaging: what ``pip install odmd-bench`` requires, the extras, the methods' entry points,
-and the error a command gives when its extra is missing. The built wheel itself, installed
-outside the repository with and without torch, is tested by ``scripts/check_wheel.sh``."""
+"""Packaging: what ``pip install odmd-bench`` requires, the extras and the entry points.
+
+Also the error a command gives when its extra is missing. The built wheel itself,
+installed outside the repository with and without torch, is tested by
+``scripts/check_wheel.sh``.
+"""
 
 from __future__ import annotations
 
@@ -68,8 +71,10 @@ def test_every_entry_point_names_a_module_with_both_functions(project: dict) -> 
 
 
 def test_every_package_folder_is_a_regular_package() -> None:
-    """setup.py finds packages by their ``__init__.py``: a folder without one would be left
-    out of the wheel (a namespace package is not found)."""
+    """setup.py finds packages by their ``__init__.py``.
+
+    A folder without one would be left out of the wheel (a namespace package is not found).
+    """
     folders = {p.parent for top in ("odmd_bench", "baselines") for p in (ROOT / top).rglob("*.py")}
     assert not [str(f.relative_to(ROOT)) for f in folders if not (f / "__init__.py").is_file()]
 

@@ -14,9 +14,9 @@ import pytest
 from click.testing import CliRunner, Result
 
 import odmd_bench
-from odmd_bench import DataError, Examples, UsageError, ValidationError, methods
+from odmd_bench import DataError, Examples, UsageError, ValidationError, methods, predict
 from odmd_bench.cli.main import cli
-from odmd_bench.data import pixels
+from odmd_bench.data import sequences
 from odmd_bench.evaluation.metrics import set_metrics
 
 SIZE = (640, 480)
@@ -34,8 +34,8 @@ def _examples(n: int = 200, seed: int = 0) -> Examples:
     return _with_misses(odmd_bench.generate(n, perturbation="both", rng=seed), 0.05, seed)
 
 
-def _read(text: str, **kw: object) -> pixels.Sequences:
-    return pixels.read_sequences(text.encode(), SIZE, **kw)  # type: ignore[arg-type]
+def _read(text: str, **kw: object) -> sequences.Sequences:
+    return sequences.read_sequences(text.encode(), SIZE, **kw)  # type: ignore[arg-type]
 
 
 def _problems(text: str) -> ValidationError:
@@ -53,7 +53,7 @@ def _csv_rows(text: str) -> list[dict[str, str]]:
 
 def test_a_generated_set_goes_to_the_csv_and_back_with_the_same_arrays() -> None:
     ex = _examples(300)
-    back = _read(pixels.format_sequences(ex)).examples()
+    back = _read(sequences.format_sequences(ex)).examples()
     assert back.n_obs == ex.n_obs and len(back) == len(ex)
     np.testing.assert_array_equal(back.detected, ex.detected)
     # Boxes go through pixels and back: equal to rounding; missed ones are zero as stored.
@@ -95,7 +95,7 @@ def test_from_pixels_names_every_bad_array() -> None:
 
 
 def test_rows_may_come_in_any_order() -> None:
-    text = pixels.format_sequences(_examples(50), names=[f"s{i}" for i in range(50)])
+    text = sequences.format_sequences(_examples(50), names=[f"s{i}" for i in range(50)])
     header, *rows = text.splitlines()
     shuffled = [rows[i] for i in np.random.default_rng(1).permutation(len(rows))]
     a, b = _read(text), _read("\n".join([header, *shuffled]) + "\n")
@@ -105,7 +105,7 @@ def test_rows_may_come_in_any_order() -> None:
 
 
 def test_the_careful_reader_gives_the_same_numbers_as_the_fast_one() -> None:
-    text = pixels.format_sequences(_examples(100))
+    text = sequences.format_sequences(_examples(100))
     # A blank line, CRLF line ends and a BOM each force or test the row-by-row reader.
     for variant in (text.replace("\n", "\n\n", 5), "\ufeff" + text.replace("\n", "\r\n")):
         slow, fast = _read(variant).examples(), _read(text).examples()
@@ -122,7 +122,7 @@ def test_both_readers_parse_decimals_of_any_length_alike() -> None:
         x2, y2 = (f"{v:.{digits}g}" for v in rng.uniform(400, 900, 2))
         cam = ",".join(f"{v:.{digits}e}" for v in rng.normal(0, 1, 3))
         rows.append(f"s{i // 3},{i % 3},{x1},{y1},{x2},{y2},{cam}")
-    text = ",".join(pixels.REQUIRED_COLUMNS) + "\n" + "\n".join(rows) + "\n"
+    text = ",".join(sequences.REQUIRED_COLUMNS) + "\n" + "\n".join(rows) + "\n"
     # A quoted cell sends the file to the row-by-row reader.
     fast, slow = _read(text).examples(), _read(text.replace("\ns0,", '\n"s0",', 1))
     assert slow.names == _read(text).names
@@ -136,18 +136,18 @@ def test_sequences_of_different_lengths_are_grouped_and_kept_in_file_order() -> 
     parts = []
     for i, n in enumerate(lengths):
         one = (
-            pixels.select_observations(ex.subset(slice(i, i + 1)), n)
+            predict.select_observations(ex.subset(slice(i, i + 1)), n)
             if n < 10
             else ex.subset(slice(i, i + 1))
         )
-        body = pixels.format_sequences(one, names=[f"q{i}"]).splitlines()[1:]
+        body = sequences.format_sequences(one, names=[f"q{i}"]).splitlines()[1:]
         parts += body
-    text = ",".join(pixels.REQUIRED_COLUMNS) + ",depth\n" + "\n".join(parts) + "\n"
+    text = ",".join(sequences.REQUIRED_COLUMNS) + ",depth\n" + "\n".join(parts) + "\n"
     seqs = _read(text)
     assert seqs.names == tuple(f"q{i}" for i in range(30))
     assert seqs.n_obs.tolist() == lengths
     assert [g[1].n_obs for g in seqs.groups] == [2, 3, 7, 10]
-    result = pixels.predict_sequences(seqs, "box-ls")
+    result = predict.predict_sequences(seqs, "box-ls")
     from odmd_bench_baselines import box_ls
 
     for index, group in seqs.groups:
@@ -158,10 +158,10 @@ def test_sequences_of_different_lengths_are_grouped_and_kept_in_file_order() -> 
 
 
 def test_observation_selection_keeps_the_first_and_the_last_evenly() -> None:
-    assert pixels.observation_indices(10, 10).tolist() == list(range(10))
-    assert pixels.observation_indices(19, 10).tolist() == list(range(0, 19, 2))
+    assert predict.observation_indices(10, 10).tolist() == list(range(10))
+    assert predict.observation_indices(19, 10).tolist() == list(range(0, 19, 2))
     for n in range(10, 60):
-        idx = pixels.observation_indices(n, 10)
+        idx = predict.observation_indices(n, 10)
         assert idx[0] == 0 and idx[-1] == n - 1 and (np.diff(idx) >= 1).all()
         assert np.diff(idx).max() - np.diff(idx).min() <= 1
 
@@ -181,26 +181,26 @@ def _fake_method(count: int | None) -> types.SimpleNamespace:
 
 def test_a_method_built_for_k_observations_gets_k_chosen_evenly_or_a_clear_error() -> None:
     ex = _examples(4)
-    seqs = _read(pixels.format_sequences(ex))
+    seqs = _read(sequences.format_sequences(ex))
     method = _fake_method(4)
-    result = pixels.predict_sequences(seqs, method)
+    result = predict.predict_sequences(seqs, method)
     given = method.seen[0]
     assert given.n_obs == 4 and result.observations.tolist() == [4] * 4
-    keep = pixels.observation_indices(10, 4)
+    keep = predict.observation_indices(10, 4)
     np.testing.assert_array_equal(given.camera, ex.camera[:, keep])
     np.testing.assert_array_equal(given.detected, ex.detected[:, keep])
-    short = _read(pixels.format_sequences(pixels.select_observations(ex, 3)))
+    short = _read(sequences.format_sequences(predict.select_observations(ex, 3)))
     with pytest.raises(UsageError, match="takes 4 observations per sequence; 4 of 4 sequences have fewer"):
-        pixels.predict_sequences(short, method)
+        predict.predict_sequences(short, method)
     # A method declaring nothing takes every observation.
     free = _fake_method(None)
-    pixels.predict_sequences(seqs, free)
+    predict.predict_sequences(seqs, free)
     assert free.seen[0].n_obs == 10
 
 
 def test_dbox_declares_its_ten_observations() -> None:
-    assert pixels.method_observations(methods.load("dbox")) == 10
-    assert pixels.method_observations(methods.load("box-ls")) is None
+    assert predict.method_observations(methods.load("dbox")) == 10
+    assert predict.method_observations(methods.load("box-ls")) is None
 
 
 # --- strict reading ----------------------------------------------------------------------------
@@ -253,7 +253,7 @@ def test_every_bad_row_is_located_and_counted() -> None:
 
 def test_a_file_of_many_bad_rows_gives_a_short_message() -> None:
     rows = [f"s{i // 2},{i % 2},1,1,0,2,0,0,{i % 2}" for i in range(100_000)]
-    text = ",".join(pixels.REQUIRED_COLUMNS) + "\n" + "\n".join(rows) + "\n"
+    text = ",".join(sequences.REQUIRED_COLUMNS) + "\n" + "\n".join(rows) + "\n"
     error = _problems(text)
     assert error.problems == [
         "box with x2 <= x1 (100000 rows): line 2, line 3, line 4, line 5, line 6, ... (99995 more)"
@@ -268,9 +268,9 @@ def test_header_problems_name_the_missing_and_misspelt_columns() -> None:
     assert "missing column 'cam_z' (the header has 'camz': misspelt?)" in text
     assert "semicolons" in "\n".join(_problems("sequence;observation;x1\n").problems)
     assert _problems("").problems[0].startswith("the file is empty")
-    assert "no rows" in _problems(",".join(pixels.REQUIRED_COLUMNS) + "\n").problems[0]
+    assert "no rows" in _problems(",".join(sequences.REQUIRED_COLUMNS) + "\n").problems[0]
     with pytest.raises(ValidationError, match="not UTF-8"):
-        pixels.read_sequences(GOOD.replace("a,1", "\xe9,1").encode("latin-1"), SIZE)
+        sequences.read_sequences(GOOD.replace("a,1", "\xe9,1").encode("latin-1"), SIZE)
 
 
 def test_quoted_names_and_extra_columns_are_read() -> None:
@@ -282,18 +282,18 @@ def test_quoted_names_and_extra_columns_are_read() -> None:
 def test_a_gzip_file_is_read_like_the_plain_one(tmp_path: Path) -> None:
     path = tmp_path / "s.csv.gz"
     path.write_bytes(gzip.compress(GOOD.encode()))
-    a, b = pixels.read_sequences(path, SIZE).examples(), _read(GOOD).examples()
+    a, b = sequences.read_sequences(path, SIZE).examples(), _read(GOOD).examples()
     np.testing.assert_array_equal(a.boxes, b.boxes)
     path.write_bytes(gzip.compress(GOOD.encode())[:20])
     with pytest.raises(ValidationError, match="gzip"):
-        pixels.read_sequences(path, SIZE)
+        sequences.read_sequences(path, SIZE)
 
 
 def test_image_size_and_intrinsics_are_checked() -> None:
     with pytest.raises(UsageError, match="image size"):
-        pixels.read_sequences(GOOD.encode(), (0, 480))
+        sequences.read_sequences(GOOD.encode(), (0, 480))
     with pytest.raises(UsageError, match="intrinsics"):
-        pixels.read_sequences(GOOD.encode(), SIZE, (1.0, 2.0, 3.0))
+        sequences.read_sequences(GOOD.encode(), SIZE, (1.0, 2.0, 3.0))
 
 
 # --- the command -------------------------------------------------------------------------------
@@ -314,7 +314,7 @@ def test_predict_box_ls_equals_baseline_box_ls_on_the_same_sequences(
     for set_name, ex in sets.items():
         seq_csv = tmp_path / f"{set_name}.csv"
         names = [f"{set_name}-{i}" for i in range(len(ex))]
-        pixels.write_sequences(seq_csv, ex, names=names)
+        sequences.write_sequences(seq_csv, ex, names=names)
         out = tmp_path / f"{set_name}-depths.csv"
         r = _invoke(
             ["predict", str(seq_csv), "--method", "box-ls", "--image-size", "640", "480", "-o", str(out)]

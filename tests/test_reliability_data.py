@@ -24,7 +24,9 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import odmd_bench
-from odmd_bench.data.io import clean_stale_temps, content_sha256, meta_sha256, read_set, write_sets
+from odmd_bench.data.atomic import clean_stale_temps
+from odmd_bench.data.hashing import content_sha256, meta_sha256
+from odmd_bench.data.io import read_set, write_sets
 from odmd_bench.data.registry import set_file
 from odmd_bench.data.store import ensure_generated, manifest
 from odmd_bench.errors import DataError, MissingDataError, StorageError
@@ -312,14 +314,14 @@ def test_a_full_disk_is_a_clear_error(small_tmpfs: Path) -> None:
 
 def test_write_errors_are_storage_errors(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """The same, for each cause, by making the final rename fail."""
-    import odmd_bench.data.io as io_mod
+    import odmd_bench.data.atomic as atomic_mod
 
     for code, fix in ((errno.ENOSPC, "free space"), (errno.EACCES, "writable"), (errno.EROFS, "read-only")):
 
         def fail(src: str, dst: str, code: int = code) -> None:
             raise OSError(code, os.strerror(code), dst)
 
-        monkeypatch.setattr(io_mod.os, "replace", fail)
+        monkeypatch.setattr(atomic_mod.os, "replace", fail)
         with pytest.raises(StorageError, match=fix) as info:
             write_sets(tmp_path / "x.h5", {"normal": odmd_bench.generate(3)})
         assert isinstance(info.value, OSError) and info.value.errno == code
@@ -442,7 +444,7 @@ def test_a_sigkilled_writer_leaves_a_temp_file_that_the_next_write_removes(tmp_p
     script = textwrap.dedent(
         """
         import sys, time
-        from odmd_bench.data.io import atomic_path
+        from odmd_bench.data.atomic import atomic_path
         with atomic_path(sys.argv[1]) as tmp:
             tmp.write_bytes(b"half" * 1000)
             print(tmp, flush=True)

@@ -58,11 +58,58 @@ def test_exact_with_missing_detections_left_out() -> None:
     assert np.max(_percent_error(depth, ex)) < 1e-7
 
 
+def _scale_bound(ex: Examples, params: RobustParams = DEFAULT_PARAMS) -> np.ndarray:
+    """The largest depth scale mode may give: ``z_low + ratio * z travel`` (used boxes)."""
+    cz = ex.camera[:, :, 2]
+    nearest = np.max(np.where(ex.detected, cz, -np.inf), axis=1)
+    spread = nearest - np.min(np.where(ex.detected, cz, np.inf), axis=1)
+    return np.maximum(nearest, 0.0) + params.min_depth + params.scale_max_depth_ratio * spread
+
+
 def test_scale_mode_is_exact_without_intrinsics_on_z_only_motion() -> None:
     ex = odmd_bench.generate(300, preset="odms", perturbation="normal", rng=3)
     bare = _without(ex, *INTRINSICS)
+    # The odms preset reaches depth / travel of about 20: widen the prior to cover it.
+    wide = replace(DEFAULT_PARAMS, scale_max_depth_ratio=30.0)
+    assert np.max(_percent_error(robust.predict(bare, wide, mode="scale"), ex)) < 1e-7
+    # With the default prior, exact wherever the true depth is inside it, and never above it.
     depth = robust.predict(bare, mode="scale")
-    assert np.max(_percent_error(depth, ex)) < 1e-7
+    bound = _scale_bound(ex)
+    inside = ex.depth <= bound
+    assert 0 < inside.sum() < len(ex)
+    assert np.max(_percent_error(depth[inside], ex.subset(inside))) < 1e-7
+    assert np.all(depth <= bound * (1 + 1e-12))
+    assert np.all(depth[~inside] > 0.8 * bound[~inside])
+
+
+def test_scale_mode_is_the_posterior_median_it_states() -> None:
+    """Independent check: a dense quadrature of the stated integrand (per unit log Z,
+    RSS(Z)^-(k-1) / Z^2 on the prior's range) has its median where scale mode says."""
+    ex = odmd_bench.generate(6, preset="odms", perturbation="object", rng=21)
+    depth = robust.predict(ex, mode="scale")
+    bound = _scale_bound(ex)
+    low = np.maximum(ex.camera[:, :, 2].max(axis=1), 0.0) + DEFAULT_PARAMS.min_depth
+    for i in range(len(ex)):
+        x = np.linspace(np.log(low[i]), np.log(bound[i]), 400_001)
+        zi = np.exp(x)[:, None] - ex.camera[i, :, 2][None]
+        v = np.log(ex.boxes[i, :, 2:4])[None] + np.log(zi)[:, :, None]
+        rss = ((v - v.mean(axis=1, keepdims=True)) ** 2).sum(axis=(1, 2))
+        logp = -(ex.n_obs - 1) * np.log(rss) - 2 * x
+        cdf = np.cumsum(np.exp(logp - logp.max()))
+        median = np.exp(x[np.searchsorted(cdf, 0.5 * cdf[-1])])
+        assert abs(depth[i] / median - 1) < 1e-3, i
+
+
+def test_scale_mode_unresolvable_examples_stay_bounded_and_are_counted() -> None:
+    ex = odmd_bench.generate(40, preset="odms", perturbation="normal", rng=22)
+    frozen = np.repeat(ex.boxes[:, -1:, :], ex.n_obs, axis=1)  # no expansion at all
+    depth, counts = robust.predict_report(_with(ex, boxes=frozen), mode="scale")
+    assert np.all(np.isfinite(depth)) and np.all(depth > 0)
+    assert np.all(depth <= _scale_bound(ex) * (1 + 1e-12))
+    assert counts["fit_failed"] == 0
+    still = np.zeros_like(ex.camera)  # the camera never moves: nothing to resolve
+    depth, counts = robust.predict_report(_with(ex, camera=still), mode="scale")
+    assert counts["fit_failed"] == len(ex) and np.all(depth == 0.0)
 
 
 @settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -222,6 +269,9 @@ def test_bad_arguments_are_usage_errors() -> None:
     with pytest.raises(UsageError) as info:
         RobustParams(loss="l2", loss_scale=-1.0, noise_models=())
     assert len(info.value.problems) == 3
+    with pytest.raises(UsageError) as info:
+        RobustParams(scale_max_depth_ratio=0.0, scale_grid=4, scale_refinements=-1)
+    assert len(info.value.problems) == 3
 
 
 # --- hyperparameters were chosen on val, and the numbers on the original sets ----------
@@ -256,6 +306,22 @@ def test_odms_detection_sets_need_scale_mode(paper_data_dir: Path) -> None:
     depth, counts = robust.predict_report(ex, mode="scale")
     assert depth.shape == (len(ex),) and np.all(np.isfinite(depth))
     assert counts["fit_failed"] == 0
+
+
+def test_scale_mode_on_odms_val_is_bounded_and_no_worse_than_box_ls(paper_data_dir: Path) -> None:
+    """The acceptance criterion of scale mode, on the val sets it was designed on: every
+    depth inside the prior (at most 6 times the camera travel beyond the nearest camera,
+    so no runaway), and a mean percent error no worse than Box_LS on each set."""
+    from odmd_bench_baselines import box_ls
+
+    sets = odmd_bench.load_split("val", "odms-detection", paper_data_dir)
+    for name, ex in sets.items():
+        depth, counts = robust.predict_report(ex, mode="scale")
+        assert counts["fit_failed"] == 0 and counts["too_few_detections"] == 0, name
+        assert np.all(depth > 0) and np.all(depth <= _scale_bound(ex) * (1 + 1e-12)), name
+        ours = float(np.mean(_percent_error(depth, ex)))
+        theirs = float(np.mean(_percent_error(box_ls.predict(ex), ex)))
+        assert ours <= theirs, (name, ours, theirs)
 
 
 def test_fit_minimises_the_stated_objective() -> None:

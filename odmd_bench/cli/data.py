@@ -7,10 +7,10 @@ from pathlib import Path
 
 import click
 
-from odmd_bench.cli.options import data_dir_option, data_dir_option_with
+from odmd_bench.cli.options import data_dir_option, data_dir_or_out_option
 from odmd_bench.data.registry import BENCHMARKS, SPLITS, resolve_data_dir
 
-__all__ = ["COMMANDS", "data_dir_option"]
+__all__ = ["COMMANDS"]
 
 
 @click.command()
@@ -22,7 +22,7 @@ __all__ = ["COMMANDS", "data_dir_option"]
     help="Generated benchmark to write.",
 )
 @click.option("--split", type=click.Choice(SPLITS), default=None, help="Only this split (default: both).")
-@data_dir_option_with("--out")
+@data_dir_or_out_option
 @click.option("--force", is_flag=True, help="Regenerate even files that are already right.")
 def generate(benchmark: str, split: str | None, data_dir: Path | None, force: bool) -> None:
     """Write the val and test files of a generated benchmark, verified against splits/.

@@ -73,7 +73,7 @@ def _emit(text: str, output: Path | None, what: str) -> None:
     if output is None or str(output) == "-":
         click.echo(text, nl=False)
         return
-    from odmd_bench.data.io import atomic_write
+    from odmd_bench.data.atomic import atomic_write
 
     with atomic_write(output, "w") as fh:
         fh.write(text)

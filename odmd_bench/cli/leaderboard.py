@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import click
 
@@ -67,8 +68,10 @@ def build_command(root: Path | None, data_dir: Path | None, original: Path | Non
 @_data_option
 @_original_option
 def check_command(root: Path | None, data_dir: Path | None, original: Path | None) -> None:
-    """Fail (exit 2) unless every entry is valid and the committed table and JSON are what
-    build writes now; every difference is named (file, row, field, old and new)."""
+    """Fail (exit 2) unless every entry is valid and the committed table and JSON are what build writes now.
+
+    Every difference is named (file, row, field, old and new).
+    """
     from odmd_bench.leaderboard import check
 
     folder = _root(root)
@@ -111,48 +114,12 @@ def check_command(root: Path | None, data_dir: Path | None, original: Path | Non
 @_root_option
 @_data_option
 @_original_option
-def add_command(
-    predictions: Path,
-    method: str,
-    name: str,
-    description: str,
-    paper: str,
-    code: str,
-    training_data: str,
-    command_: str,
-    benchmark: str,
-    split: str,
-    calibrated: bool,
-    date: str | None,
-    notes: str | None,
-    replace: bool,
-    root: Path | None,
-    data_dir: Path | None,
-    original: Path | None,
-) -> None:
+def add_command(predictions: Path, root: Path | None, command_: str, **fields: Any) -> None:
     """Add the predictions CSV PREDICTIONS as an entry (validated, hashed, compressed)."""
     from odmd_bench.leaderboard import add_entry
 
-    folder = _root(root)
-    entry = add_entry(
-        folder,
-        predictions,
-        method=method,
-        name=name,
-        description=description,
-        paper=paper,
-        code=code,
-        training_data=training_data,
-        command=command_,
-        benchmark=benchmark,
-        split=split,
-        calibrated=calibrated,
-        date=date,
-        notes=notes,
-        data_dir=data_dir,
-        original=original,
-        replace=replace,
-    )
+    # The other options are add_entry's keywords, under the same names.
+    entry = add_entry(_root(root), predictions, command=command_, **fields)
     click.echo(f"added {entry.folder}; now run `odmd-bench leaderboard build` and commit the folder")
 
 

@@ -110,9 +110,9 @@ def cli() -> None:
 
 
 def _register() -> None:
-    from odmd_bench.cli import baseline, data, dbox, evaluate, leaderboard, predict
+    from odmd_bench.cli import baseline, data, dbox, evaluate, leaderboard, plot, predict
 
-    for module in (data, baseline, predict, evaluate, leaderboard, dbox):
+    for module in (data, baseline, predict, evaluate, plot, leaderboard, dbox):
         for command in module.COMMANDS:
             cli.add_command(command)
 

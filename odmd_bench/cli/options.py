@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
 
 import click
 
@@ -14,18 +13,14 @@ DATA_DIR_HELP = (
     "e.g. ~/.local/share/odmd-bench; `odmd-bench data-dir` prints it]."
 )
 
-
-def data_dir_option_with(*aliases: str) -> Any:
-    """The ``--data-dir`` option (parameter ``data_dir``), with extra names ``aliases``."""
-    return click.option(
-        "--data-dir",
-        *aliases,
-        "data_dir",
-        type=click.Path(file_okay=False, path_type=Path),
-        default=None,
-        help=DATA_DIR_HELP,
-    )
-
+_DATA_DIR_TYPE = click.Path(file_okay=False, path_type=Path)
 
 #: ``--data-dir``: the data folder (``None``: the default, see ``odmd-bench data-dir``).
-data_dir_option = data_dir_option_with()
+data_dir_option = click.option(
+    "--data-dir", "data_dir", type=_DATA_DIR_TYPE, default=None, help=DATA_DIR_HELP
+)
+
+#: The same option for ``generate``, which also takes it as ``--out`` (docs/format.md).
+data_dir_or_out_option = click.option(
+    "--data-dir", "--out", "data_dir", type=_DATA_DIR_TYPE, default=None, help=DATA_DIR_HELP
+)

@@ -1,7 +1,7 @@
 """``predict``: depths for a user's own detections and camera motion (a sequences CSV).
 
-The format and its conversion are :mod:`odmd_bench.data.pixels`'s; the method is any
-registered one (:mod:`odmd_bench.methods`).
+The format is :mod:`odmd_bench.data.sequences`'s; the method is any registered one
+(:mod:`odmd_bench.methods`), run by :mod:`odmd_bench.predict`.
 """
 
 from __future__ import annotations
@@ -96,8 +96,9 @@ def predict(
     import numpy as np
 
     from odmd_bench import methods
-    from odmd_bench.data.io import atomic_write
-    from odmd_bench.data.pixels import format_depths, predict_sequences, read_sequences
+    from odmd_bench.data.atomic import atomic_write
+    from odmd_bench.data.sequences import read_sequences
+    from odmd_bench.predict import format_depths, predict_sequences
 
     method = methods.load(method_name)
     given = {"weights": weights, "config": config, "mode": mode}

@@ -154,6 +154,7 @@ class GeneratorConfig:
         return json.loads(json.dumps(d))
 
     def to_json(self) -> str:
+        """Canonical JSON: sorted keys, no spaces."""
         return json.dumps(self.to_dict(), sort_keys=True, separators=(",", ":"))
 
     @classmethod
@@ -260,6 +261,7 @@ PERTURBATIONS = ("normal", "camera", "object", "both")
 
 
 def check_perturbation(perturbation: str) -> str:
+    """Return ``perturbation``; raise :class:`ConfigError` unless it is one of :data:`PERTURBATIONS`."""
     if perturbation not in PERTURBATIONS:
         raise ConfigError(
             f"unknown perturbation {perturbation!r}; expected one of {', '.join(PERTURBATIONS)}"

@@ -85,8 +85,7 @@ class Examples:
     ) -> Examples:
         """Examples from pixel box corners and camera positions in a fixed frame.
 
-        See :func:`odmd_bench.data.pixels.from_pixels` (``intrinsics=``,
-        ``observation_depth=``, ``attrs=``).
+        See :func:`odmd_bench.data.pixels.from_pixels`.
 
         Args:
             corners: (N, n_obs, 4) ``x1, y1, x2, y2`` in pixels, NaN in all four where
@@ -94,6 +93,7 @@ class Examples:
             camera: (N, n_obs, 3) camera positions, metres, camera axes, any origin.
             image_size: ``(width, height)`` in pixels.
             depth: (N,) true depth at the last observation, or None (unknown).
+            **kwargs: ``intrinsics``, ``observation_depth``, ``attrs``.
 
         Returns:
             The examples in the package's convention.
@@ -104,6 +104,7 @@ class Examples:
 
     @property
     def n_obs(self) -> int:
+        """Number of observations per example."""
         return int(self.boxes.shape[1])
 
     def intrinsics(self) -> tuple[float, float, float, float, float, float]:

@@ -23,9 +23,11 @@ from typing import Any
 
 import numpy as np
 
+from odmd_bench.data.atomic import clean_stale_temps, locked
 from odmd_bench.data.config import HSR_GRASP_CAMERA
 from odmd_bench.data.examples import Examples
-from odmd_bench.data.io import clean_stale_temps, group_attrs, locked, set_names, write_sets
+from odmd_bench.data.hashing import group_attrs
+from odmd_bench.data.io import set_names, write_sets
 from odmd_bench.data.manifests import known_originals
 from odmd_bench.data.registry import get_benchmark, set_file
 from odmd_bench.data.store import pin_problem, read_checked
@@ -57,6 +59,7 @@ class RestrictedUnpickler(pickle.Unpickler):
     """An unpickler that can build dicts, lists, strings, numbers and numpy arrays only."""
 
     def find_class(self, module: str, name: str) -> Any:
+        """The allowed factory for ``module.name``; raise :class:`ImportRefused` for any other."""
         factory = _ALLOWED.get((module, name))
         if factory is None:
             raise ImportRefused(
@@ -66,6 +69,7 @@ class RestrictedUnpickler(pickle.Unpickler):
         return factory()
 
     def persistent_load(self, pid: Any) -> Any:
+        """Refuse persistent ids (:class:`ImportRefused`): an ODMD file never has them."""
         raise ImportRefused("the pickle uses persistent ids, which an ODMD file never does; refused")
 
 
@@ -81,6 +85,8 @@ def safe_unpickle(data: bytes, origin: str = "<bytes>") -> Any:
 
 @dataclass(frozen=True)
 class Target:
+    """Where an original file goes: a set of a benchmark split."""
+
     benchmark: str
     split: str
     set: str

@@ -85,12 +85,12 @@ def check_set(benchmark: Benchmark, set_name: str) -> str:
 
 
 def default_data_dir() -> Path:
-    """The data folder: ``$ODMD_BENCH_DATA`` if set, else the OS's user data folder.
+    r"""The data folder: ``$ODMD_BENCH_DATA`` if set, else the OS's user data folder.
 
     The user data folder follows each OS's convention through ``platformdirs``:
     ``$XDG_DATA_HOME/odmd-bench`` (``~/.local/share/odmd-bench``) on Linux,
     ``~/Library/Application Support/odmd-bench`` on macOS and
-    ``%LOCALAPPDATA%\\odmd-bench`` on Windows.
+    ``%LOCALAPPDATA%\odmd-bench`` on Windows.
     """
     env = os.environ.get(DATA_DIR_ENV)
     if env:

@@ -21,17 +21,11 @@ from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
 
+from odmd_bench.data.atomic import clean_stale_temps, locked
 from odmd_bench.data.examples import Examples
 from odmd_bench.data.generator import GENERATOR_VERSION, generate
-from odmd_bench.data.io import (
-    clean_stale_temps,
-    content_sha256,
-    group_attrs,
-    locked,
-    read_set,
-    set_arrays,
-    write_sets,
-)
+from odmd_bench.data.hashing import content_sha256, group_attrs, set_arrays
+from odmd_bench.data.io import read_set, write_sets
 from odmd_bench.data.manifests import read_manifest, splits_dir
 from odmd_bench.data.registry import check_set, check_split, get_benchmark, rebuild_command, set_file
 from odmd_bench.errors import DataError
@@ -56,8 +50,10 @@ def pin(benchmark: str, split: str, set_name: str) -> dict[str, Any]:
 
 
 def build_set(benchmark: str, split: str, set_name: str) -> Examples:
-    """Make one set of a generated benchmark from its manifest entry (not yet checked
-    against the pins; :func:`ensure_generated` does that)."""
+    """Make one set of a generated benchmark from its manifest entry.
+
+    The set is not yet checked against the pins; :func:`ensure_generated` does that.
+    """
     if not get_benchmark(benchmark).generated:
         raise DataError(
             f"benchmark {benchmark!r} is imported, not generated: run `{rebuild_command(benchmark)}`"
@@ -89,7 +85,7 @@ def pin_problem(benchmark: str, split: str, set_name: str, attrs: dict[str, Any]
     """A problem line if a set with these attributes is not its pinned version, else None.
 
     ``attrs`` are the set's stored attributes (``content_sha256`` and ``meta_sha256``
-    included, as :func:`~odmd_bench.data.io.group_attrs` gives them). A set of a
+    included, as :func:`~odmd_bench.data.hashing.group_attrs` gives them). A set of a
     generated benchmark must always match its pins. A set of an imported benchmark
     must match them when it is the conversion of a known original file (its
     ``source_sha256`` is in ``splits/odmd-original.json``); sets imported with
@@ -209,31 +205,25 @@ def ensure_generated(
             say(f"removed a dead writer's temporary file {p}")
         why = None if force else _why_not_right(path, benchmark, split)
         if not force and why is None:
-            say(f"{path}: already up to date")
-            out[split] = {
-                "path": path,
-                "reused": True,
-                "sets": _hashes(path, benchmark, split),
-                "replaced": None,
-            }
+            out[split] = _reused(path, benchmark, split, say)
             continue
         with locked(path):
             if not force:  # another process may have written it while we waited
                 why = _why_not_right(path, benchmark, split)
                 if why is None:
-                    say(f"{path}: already up to date")
-                    out[split] = {
-                        "path": path,
-                        "reused": True,
-                        "sets": _hashes(path, benchmark, split),
-                        "replaced": None,
-                    }
+                    out[split] = _reused(path, benchmark, split, say)
                     continue
             if why not in (None, "missing"):
                 say(f"replacing {path}: {why}")
             out[split] = _write_generated(path, benchmark, split, say)
             out[split]["replaced"] = None if why == "missing" else (why or "--force")
     return out
+
+
+def _reused(path: Path, benchmark: str, split: str, say: Progress) -> dict[str, Any]:
+    """What :func:`ensure_generated` reports for a file that is already right."""
+    say(f"{path}: already up to date")
+    return {"path": path, "reused": True, "sets": _hashes(path, benchmark, split), "replaced": None}
 
 
 def _write_generated(path: Path, benchmark: str, split: str, say: Progress) -> dict[str, Any]:
@@ -303,9 +293,12 @@ def load(
     rebuilds it; it is never used.
 
     Example:
-        >>> ex = load("test", "robot")  # doctest: +SKIP
-        >>> ex.boxes.shape
-        (3000, 10, 4)
+        >>> import tempfile
+        >>> tmp = tempfile.TemporaryDirectory()  # a data folder of its own
+        >>> ex = load("test", "robot", data_dir=tmp.name)  # generates odmd-v1 test first
+        >>> ex.boxes.shape, ex.attrs["benchmark"], ex.attrs["set"]
+        ((3000, 10, 4), 'odmd-v1', 'robot')
+        >>> tmp.cleanup()
     """
     b = get_benchmark(benchmark)
     check_set(b, set_name)

@@ -117,12 +117,15 @@ def score_depths(
         UsageError: unknown benchmark, split or sets, or ``depths`` not a mapping.
         DataError: the sets cannot be loaded.
 
-    Examples:
+    Example:
+        >>> import tempfile
         >>> import odmd_bench
-        >>> sets = odmd_bench.load_split("val", "odmd-v1")  # doctest: +SKIP
-        >>> r = odmd_bench.score("odmd-v1", "val", {s: ex.depth for s, ex in sets.items()})  # doctest: +SKIP
-        >>> r.all_percent_error_mean  # doctest: +SKIP
+        >>> tmp = tempfile.TemporaryDirectory()  # a data folder of its own
+        >>> sets = odmd_bench.load_split("val", "odmd-v1", data_dir=tmp.name)
+        >>> depths = {s: ex.depth for s, ex in sets.items()}  # the true depths
+        >>> odmd_bench.score("odmd-v1", "val", depths, data_dir=tmp.name).all_percent_error_mean
         0.0
+        >>> tmp.cleanup()
     """
     from odmd_bench.data.store import load_split
 

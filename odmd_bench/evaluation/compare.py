@@ -80,6 +80,7 @@ class Comparison:
     provenance: dict[str, Any] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
+        """The JSON object that ``compare --format json`` prints."""
         return {
             "benchmark": self.benchmark,
             "split": self.split,
@@ -158,29 +159,29 @@ def compare_errors(
 ) -> Comparison:
     """Compare two methods' per-example errors, set by set and for ``All``.
 
-    Parameters
-    ----------
-    errors_a, errors_b : mapping of set name to array-like (N_set,)
-        Per-example errors (e.g. percent errors) of A and B on the same examples in the
-        same order; both must have the same sets.
-    n_resamples : number of bootstrap resamples and of sign flips (default 2000)
-    seed : seed of the random streams (default 0; results are reproducible)
-    confidence : level of the interval and ``1 - `` the test's threshold (default 0.95)
+    Args:
+        errors_a: ``{set name: (N_set,) errors}`` of A, per example (e.g. percent errors).
+        errors_b: The same for B, on the same examples in the same order and the same sets.
+        n_resamples: Number of bootstrap resamples and of sign flips.
+        seed: Seed of the random streams (results are reproducible).
+        confidence: Level of the interval, and ``1 -`` the test's threshold.
 
-    Returns
-    -------
-    Comparison
+    Returns:
+        The per-set and ``All`` comparison.
 
-    Examples
-    --------
-    >>> import numpy as np
-    >>> a = {"normal": np.full(50, 1.0)}
-    >>> b = {"normal": np.full(50, 1.0) + np.linspace(0.5, 1.5, 50)}
-    >>> c = compare_errors(a, b)
-    >>> c.sets["normal"].verdict, round(c.sets["normal"].difference, 6)
-    ('A better', -1.0)
-    >>> compare_errors(a, a).all.verdict
-    'not distinguishable'
+    Raises:
+        UsageError: If the sets differ, an array is empty, not 1-D, of another shape or
+            not finite, or ``n_resamples`` or ``confidence`` is out of range.
+
+    Example:
+        >>> import numpy as np
+        >>> a = {"normal": np.full(50, 1.0)}
+        >>> b = {"normal": np.full(50, 1.0) + np.linspace(0.5, 1.5, 50)}
+        >>> c = compare_errors(a, b)
+        >>> c.sets["normal"].verdict, round(c.sets["normal"].difference, 6)
+        ('A better', -1.0)
+        >>> compare_errors(a, a).all.verdict
+        'not distinguishable'
     """
     if list(errors_a) != list(errors_b):
         raise UsageError(f"A and B must cover the same sets; A has {list(errors_a)}, B has {list(errors_b)}")
@@ -282,9 +283,12 @@ def compare_files(
     a path, bytes or a binary file (see :func:`~odmd_bench.evaluation.scoring.evaluate`);
     ``names`` name them in messages and provenance (default: the paths).
 
-    Returns
-    -------
-    (Comparison, result of A, result of B)
+    Returns:
+        ``(comparison, result of A, result of B)``.
+
+    Raises:
+        ValidationError: Naming the problems of both files.
+        UsageError: If the two results cannot be compared (:func:`compare_results`).
     """
     results: list[EvaluationResult] = []
     problems: list[str] = []

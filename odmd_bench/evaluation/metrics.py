@@ -24,18 +24,13 @@ STATS: tuple[str, ...] = ("mean", "median", "min", "max", "std")
 def check_depths(y_true: Any, y_pred: Any) -> tuple[np.ndarray, np.ndarray]:
     """Return ``y_true`` and ``y_pred`` as 1-D float64 arrays of the same length.
 
-    Parameters
-    ----------
-    y_true : array-like of shape (N,)
-        True depths, finite and strictly positive.
-    y_pred : array-like of shape (N,)
-        Estimated depths, finite (zero and negative estimates are legal).
+    Args:
+        y_true: (N,) true depths, finite and strictly positive.
+        y_pred: (N,) estimated depths, finite (zero and negative estimates are legal).
 
-    Raises
-    ------
-    UsageError
-        If the shapes differ, an array is not 1-D, a value is not finite, or a true
-        depth is not positive.
+    Raises:
+        UsageError: the shapes differ, an array is not 1-D, a value is not finite, or a
+            true depth is not positive.
     """
     t = np.asarray(y_true, dtype=np.float64)
     p = np.asarray(y_pred, dtype=np.float64)
@@ -54,42 +49,24 @@ def check_depths(y_true: Any, y_pred: Any) -> tuple[np.ndarray, np.ndarray]:
 
 
 def absolute_error(y_true: Any, y_pred: Any) -> np.ndarray:
-    """Per-example absolute depth error ``|Z - Z_hat|`` in metres.
+    """Per-example absolute depth error ``|Z - Z_hat|`` in metres, (N,) from two (N,) arrays.
 
-    Parameters
-    ----------
-    y_true, y_pred : array-like of shape (N,)
-
-    Returns
-    -------
-    ndarray of shape (N,)
-
-    Examples
-    --------
-    >>> absolute_error([2.0, 1.0], [1.5, 1.25]).tolist()
-    [0.5, 0.25]
+    Example:
+        >>> absolute_error([2.0, 1.0], [1.5, 1.25]).tolist()
+        [0.5, 0.25]
     """
     t, p = check_depths(y_true, y_pred)
     return np.abs(t - p)
 
 
 def percent_error(y_true: Any, y_pred: Any) -> np.ndarray:
-    """Per-example percent depth error ``|Z - Z_hat| / Z * 100``.
+    """Per-example percent depth error ``|Z - Z_hat| / Z * 100``, (N,) from two (N,) arrays.
 
-    Parameters
-    ----------
-    y_true, y_pred : array-like of shape (N,)
-
-    Returns
-    -------
-    ndarray of shape (N,)
-
-    Examples
-    --------
-    >>> percent_error([2.0, 1.0], [1.5, 1.25]).tolist()
-    [25.0, 25.0]
-    >>> percent_error([1.0], [-1.0]).tolist()  # a negative estimate is a legal (bad) one
-    [200.0]
+    Example:
+        >>> percent_error([2.0, 1.0], [1.5, 1.25]).tolist()
+        [25.0, 25.0]
+        >>> percent_error([1.0], [-1.0]).tolist()  # a negative estimate is a legal (bad) one
+        [200.0]
     """
     t, p = check_depths(y_true, y_pred)
     return np.abs(t - p) / t * 100.0
@@ -98,19 +75,15 @@ def percent_error(y_true: Any, y_pred: Any) -> np.ndarray:
 def summarize(errors: Any) -> dict[str, float]:
     """Mean, median, min, max and population std (``ddof = 0``) of per-example errors.
 
-    Parameters
-    ----------
-    errors : array-like of shape (N,), N >= 1
+    Args:
+        errors: (N,) errors, N >= 1.
 
-    Returns
-    -------
-    dict
+    Returns:
         ``{"mean", "median", "min", "max", "std"}`` as Python floats.
 
-    Examples
-    --------
-    >>> summarize([0.0, 1.0, 2.0, 5.0])
-    {'mean': 2.0, 'median': 1.5, 'min': 0.0, 'max': 5.0, 'std': 1.8708286933869707}
+    Example:
+        >>> summarize([0.0, 1.0, 2.0, 5.0])
+        {'mean': 2.0, 'median': 1.5, 'min': 0.0, 'max': 5.0, 'std': 1.8708286933869707}
     """
     e = np.asarray(errors, dtype=np.float64)
     if e.ndim != 1 or e.size == 0:
@@ -127,21 +100,18 @@ def summarize(errors: Any) -> dict[str, float]:
 def set_metrics(y_true: Any, y_pred: Any) -> dict[str, Any]:
     """Everything reported for one set: size and both errors summarised.
 
-    Parameters
-    ----------
-    y_true, y_pred : array-like of shape (N,)
+    Args:
+        y_true: (N,) true depths.
+        y_pred: (N,) estimated depths.
 
-    Returns
-    -------
-    dict
+    Returns:
         ``{"n": N, "percent_error": summary, "absolute_error": summary}`` with each
         summary as returned by :func:`summarize`.
 
-    Examples
-    --------
-    >>> m = set_metrics([1.0, 2.0], [1.1, 2.0])
-    >>> m["n"], round(m["percent_error"]["mean"], 12), m["absolute_error"]["min"]
-    (2, 5.0, 0.0)
+    Example:
+        >>> m = set_metrics([1.0, 2.0], [1.1, 2.0])
+        >>> m["n"], round(m["percent_error"]["mean"], 12), m["absolute_error"]["min"]
+        (2, 5.0, 0.0)
     """
     t, p = check_depths(y_true, y_pred)
     return {
@@ -154,14 +124,12 @@ def set_metrics(y_true: Any, y_pred: Any) -> dict[str, Any]:
 def all_sets_mean(set_means: Mapping[str, float]) -> float:
     """``All``: the unweighted mean of the sets' mean percent errors (the paper's "All Sets").
 
-    Parameters
-    ----------
-    set_means : mapping of set name to that set's mean percent error
+    Args:
+        set_means: set name -> that set's mean percent error.
 
-    Examples
-    --------
-    >>> all_sets_mean({"normal": 0.0, "camera": 4.0, "object": 20.0, "robot": 20.0})
-    11.0
+    Example:
+        >>> all_sets_mean({"normal": 0.0, "camera": 4.0, "object": 20.0, "robot": 20.0})
+        11.0
     """
     if not set_means:
         raise UsageError("All needs at least one set")

@@ -70,7 +70,7 @@ def parse_predictions(
     benchmark: str | None = None,
     strict: bool = True,
 ) -> ParsedPredictions:
-    """Parse and check a predictions CSV from its text alone (no data set is read).
+    r"""Parse and check a predictions CSV from its text alone (no data set is read).
 
     Args:
         source: a path, the file's bytes, or a binary file object (gzip is recognised);
@@ -90,7 +90,7 @@ def parse_predictions(
         UsageError: an unknown ``benchmark``.
 
     Examples:
-        >>> p = parse_predictions(b"split,set,index,depth\\ntest,robot,0,1.5\\n")
+        >>> p = parse_predictions(b"split,set,index,depth\ntest,robot,0,1.5\n")
         >>> p.benchmark, p.split, p.set_names, p.depths.tolist()
         ('odmd-v1', 'test', ('robot',), [1.5])
     """

@@ -12,7 +12,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from odmd_bench.data.io import atomic_write
+from odmd_bench.data.atomic import atomic_write
 from odmd_bench.data.registry import check_split
 from odmd_bench.errors import UsageError
 

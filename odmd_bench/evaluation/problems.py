@@ -12,6 +12,9 @@ from __future__ import annotations
 
 import difflib
 from collections.abc import Iterable
+from typing import Any
+
+import numpy as np
 
 from odmd_bench.errors import ValidationError
 
@@ -85,6 +88,24 @@ class Problems:
             shown.append(where)
         if note and kind not in self._notes:
             self._notes[kind] = note
+
+    def add_lines(self, kind: str, mask: np.ndarray, lines: np.ndarray, cells: Any = None) -> None:
+        """Count every row where ``mask`` is True as ``kind``, the first few as ``line L (cell)``.
+
+        Args:
+            kind: the kind of problem.
+            mask: (M,) bool, one per row.
+            lines: (M,) int, each row's line in the file.
+            cells: (M,) the values shown beside the lines, or None.
+        """
+        hit = np.flatnonzero(mask)
+        for i in hit[:SHOWN]:
+            where = f"line {int(lines[i])}"
+            if cells is not None:
+                where += f" ({show(str(cells[i]))})"
+            self.add(kind, where)
+        if hit.size > SHOWN:
+            self.add(kind, count=int(hit.size - SHOWN))
 
     def _take(self, other: Problems, kind: str) -> None:
         shown = other._shown.get(kind, [])

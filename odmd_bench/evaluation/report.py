@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from odmd_bench.data.io import atomic_write
+from odmd_bench.data.atomic import atomic_write
 from odmd_bench.errors import UsageError
 from odmd_bench.evaluation.compare import Comparison, PairedDifference
 from odmd_bench.evaluation.metrics import STATS
@@ -124,8 +124,10 @@ def format_csv(result: EvaluationResult) -> str:
 
 
 def format_json(result: EvaluationResult) -> str:
-    """The JSON object of docs/format.md, "JSON output" (keys ``benchmark``, ``split``, ``sets``,
-    ``all``, ``provenance``, plus ``warnings``): strict JSON, never ``NaN`` or ``Infinity``."""
+    """The JSON object of docs/format.md, "JSON output": strict JSON, never ``NaN`` or ``Infinity``.
+
+    Its keys are ``benchmark``, ``split``, ``sets``, ``all``, ``provenance``, plus ``warnings``.
+    """
     return json.dumps(result.to_dict(), indent=2, allow_nan=False) + "\n"
 
 

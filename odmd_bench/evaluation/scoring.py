@@ -135,10 +135,17 @@ def evaluate(
         DataError: the sets cannot be loaded.
         UsageError: unknown arguments.
 
-    Examples:
-        >>> result = evaluate("preds.csv", benchmark="odmd-paper")  # doctest: +SKIP
-        >>> round(result.all_percent_error_mean, 2)  # doctest: +SKIP
-        11.83
+    Example:
+        >>> import tempfile
+        >>> import odmd_bench
+        >>> tmp = tempfile.TemporaryDirectory()  # a data folder of its own
+        >>> sets = odmd_bench.load_split("val", "odmd-v1", data_dir=tmp.name)
+        >>> depths = {s: 1.1 * ex.depth for s, ex in sets.items()}  # 10 % too deep
+        >>> odmd_bench.write_predictions(f"{tmp.name}/preds.csv", "val", depths, "odmd-v1")
+        >>> result = evaluate(f"{tmp.name}/preds.csv", data_dir=tmp.name)
+        >>> list(result.sets), round(result.all_percent_error_mean, 6)
+        (['normal', 'camera', 'object', 'robot'], 10.0)
+        >>> tmp.cleanup()
     """
     from odmd_bench.data.store import load_split
 

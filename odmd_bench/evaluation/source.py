@@ -6,6 +6,9 @@ needs (``odmd-v1`` test, 12,000 rows with a ``benchmark`` column, is 0.52 MB), s
 file comes near it, while ``/dev/zero``, a runaway file or a gzip bomb is refused after
 reading at most the cap plus one byte. gzip is recognised by its magic bytes, whatever
 the name, so ``.csv.gz`` files and compressed stdin are read alike.
+
+The sequences reader (:func:`odmd_bench.data.sequences.read_sequences`) reads its files
+here too, uncapped and under its own title.
 """
 
 from __future__ import annotations
@@ -36,50 +39,49 @@ def _too_large(what: str, limit: int) -> str:
     )
 
 
-def _read_path(path: Path, limit: int) -> bytes:
+def _read_path(path: Path, title: str, kind: str, limit: int | None) -> bytes:
     try:
         with path.open("rb") as fh:
             info = os.fstat(fh.fileno())
-            if stat.S_ISREG(info.st_mode) and info.st_size > limit:
-                raise ValidationError(f"{path} cannot be scored", [_too_large("the file", limit)])
-            return fh.read(limit + 1)
+            if limit is not None and stat.S_ISREG(info.st_mode) and info.st_size > limit:
+                raise ValidationError(title, [_too_large("the file", limit)])
+            return fh.read(-1 if limit is None else limit + 1)
     except FileNotFoundError:
-        raise ValidationError(f"{path} cannot be scored", [f"no such file: {path}"]) from None
+        raise ValidationError(title, [f"no such file: {path}"]) from None
     except IsADirectoryError:
-        raise ValidationError(
-            f"{path} cannot be scored", [f"{path} is a folder, not a predictions CSV file"]
-        ) from None
+        raise ValidationError(title, [f"{path} is a folder, not a {kind} CSV file"]) from None
     except OSError as e:
-        raise ValidationError(
-            f"{path} cannot be scored", [f"the file cannot be read ({e.strerror or e})"]
-        ) from None
+        raise ValidationError(title, [f"the file cannot be read ({e.strerror or e})"]) from None
 
 
-def _read_stream(stream: BinaryIO, name: str, limit: int) -> bytes:
+def _read_stream(stream: BinaryIO, name: str, title: str, kind: str, limit: int | None) -> bytes:
     try:
-        data = stream.read(limit + 1)
+        data = stream.read(-1 if limit is None else limit + 1)
     except OSError as e:
-        raise ValidationError(
-            f"{name} cannot be scored", [f"the input cannot be read ({e.strerror or e})"]
-        ) from None
+        raise ValidationError(title, [f"the input cannot be read ({e.strerror or e})"]) from None
     if not isinstance(data, bytes):
-        raise UsageError(f"{name}: predictions must be read from a binary file (open it with 'rb')")
+        raise UsageError(f"{name}: {kind} must be read from a binary file (open it with 'rb')")
     return data
 
 
-def _gunzip(data: bytes, name: str, limit: int) -> bytes:
+def _gunzip(data: bytes, title: str, limit: int | None) -> bytes:
     try:
         with gzip.GzipFile(fileobj=io.BytesIO(data)) as fh:
-            plain = fh.read(limit + 1)
+            plain = fh.read(-1 if limit is None else limit + 1)
     except (OSError, EOFError, zlib.error) as e:
-        raise ValidationError(f"{name} cannot be scored", [f"not a readable gzip file ({e})"]) from None
-    if len(plain) > limit:
-        raise ValidationError(f"{name} cannot be scored", [_too_large("the decompressed file", limit)])
+        raise ValidationError(title, [f"not a readable gzip file ({e})"]) from None
+    if limit is not None and len(plain) > limit:
+        raise ValidationError(title, [_too_large("the decompressed file", limit)])
     return plain
 
 
 def read_source(
-    source: Source, *, name: str | None = None, limit: int = MAX_PREDICTIONS_BYTES
+    source: Source,
+    *,
+    name: str | None = None,
+    limit: int | None = MAX_PREDICTIONS_BYTES,
+    title: str = "{name} cannot be scored",
+    kind: str = "predictions",
 ) -> tuple[bytes, str]:
     """The CSV bytes of ``source`` and the name to report it by.
 
@@ -88,7 +90,9 @@ def read_source(
             (e.g. ``sys.stdin.buffer``); gzip-compressed content is decompressed.
         name: how messages and provenance name it (default: the path, the file object's
             ``name``, or ``"<bytes>"``).
-        limit: the cap in bytes, before and after decompression.
+        limit: the cap in bytes, before and after decompression; None: no cap.
+        title: the title of every error, ``{name}`` standing for the name.
+        kind: what the file holds, in messages (``"a folder, not a KIND CSV file"``).
 
     Returns:
         ``(data, name)``.
@@ -103,18 +107,18 @@ def read_source(
         what = "the input"
     elif isinstance(source, (str, os.PathLike)):
         label = name or str(Path(source))
-        data = _read_path(Path(source), limit)
+        data = _read_path(Path(source), title.format(name=label), kind, limit)
         what = "the file"
     elif hasattr(source, "read"):
         label = name or str(getattr(source, "name", "<file>"))
-        data = _read_stream(source, label, limit)
+        data = _read_stream(source, label, title.format(name=label), kind, limit)
         what = "the input"
     else:
         raise UsageError(
-            f"cannot read predictions from a {type(source).__name__}; give a path, bytes or a binary file"
+            f"cannot read {kind} from a {type(source).__name__}; give a path, bytes or a binary file"
         )
     if data[:2] == _GZIP_MAGIC:
-        data = _gunzip(data, label, limit)
-    elif len(data) > limit:
-        raise ValidationError(f"{label} cannot be scored", [_too_large(what, limit)])
+        data = _gunzip(data, title.format(name=label), limit)
+    elif limit is not None and len(data) > limit:
+        raise ValidationError(title.format(name=label), [_too_large(what, limit)])
     return data, label

@@ -9,7 +9,7 @@ import os
 import tempfile
 from pathlib import Path
 
-from odmd_bench.data.io import atomic_write
+from odmd_bench.data.atomic import atomic_write
 from odmd_bench.errors import UsageError, ValidationError
 from odmd_bench.leaderboard.board import load_board_data, score_entry
 from odmd_bench.leaderboard.entry import Entry

@@ -52,14 +52,17 @@ class Board:
 
     @property
     def benchmark(self) -> str:
+        """The board's benchmark."""
         return self.spec.benchmark
 
     @property
     def split(self) -> str:
+        """The board's split."""
         return self.spec.split
 
     @property
     def sets(self) -> tuple[str, ...]:
+        """The board's sets, in column order."""
         return self.spec.sets
 
 

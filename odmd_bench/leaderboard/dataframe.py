@@ -83,9 +83,14 @@ def frame(source: str | os.PathLike[str] | Built | None = None, *, reported: boo
         UsageError: When the folder has no readable ``leaderboard.json``.
         ModuleNotFoundError: When pandas is not installed.
 
-    Examples:
-        >>> df = frame()  # doctest: +SKIP
-        >>> df[df.benchmark == "odmd-paper"][["name", "all"]].head(2)  # doctest: +SKIP
+    Example:
+        >>> from pathlib import Path
+        >>> import odmd_bench
+        >>> df = frame(Path(odmd_bench.__file__).parents[1] / "leaderboard")  # a source checkout
+        >>> df.columns[:4].tolist()
+        ['benchmark', 'split', 'position', 'group']
+        >>> bool((df.groupby(["benchmark", "split"]).position.min() == 1).all())  # best first
+        True
     """
     import pandas as pd
 

@@ -102,8 +102,11 @@ def _row_key(lines: list[str], i: int) -> tuple[str, str, list[str]] | None:
 
 
 def diff_markdown(committed: str, built: str, name: str = MARKDOWN, limit: int = 20) -> list[str]:
-    """One line per difference. Table rows are matched by table and row name (the method),
-    so a changed cell is named by table, row and column even when rows moved."""
+    """One line per difference between the committed and the built Markdown.
+
+    Table rows are matched by table and row name (the method), so a changed cell is named
+    by table, row and column even when rows moved.
+    """
     import difflib
 
     old, new = committed.splitlines(), built.splitlines()

@@ -90,14 +90,17 @@ class Entry:
 
     @property
     def method(self) -> str:
+        """The entry's method name (from its metadata)."""
         return self.meta.method
 
     @property
     def benchmark(self) -> str:
+        """The benchmark the entry is scored on."""
         return self.meta.benchmark
 
     @property
     def split(self) -> str:
+        """The split the entry is scored on."""
         return self.meta.split
 
 

@@ -22,7 +22,7 @@ import zlib
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from odmd_bench.data.io import atomic_write
+from odmd_bench.data.atomic import atomic_write
 from odmd_bench.errors import UsageError, ValidationError
 from odmd_bench.evaluation.source import MAX_PREDICTIONS_BYTES
 from odmd_bench.leaderboard.entry import ENTRY_FILES, Entry, validate_meta
@@ -186,8 +186,12 @@ def readme_path(root: str | os.PathLike[str]) -> Path:
 
 
 def stale_readme(root: str | os.PathLike[str], block: str) -> tuple[Path, str, str] | None:
-    """(README path, its text, its text with ``block`` between the markers) when the README
-    has both markers and a different block; None when there is nothing to do."""
+    """The README and its text with ``block`` spliced in, or None when there is nothing to do.
+
+    Returns:
+        ``(README path, its text, its text with block between the markers)`` when the
+        README has both markers and a different block; None otherwise.
+    """
     readme = readme_path(root)
     if not readme.is_file():
         return None

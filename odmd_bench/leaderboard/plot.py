@@ -12,8 +12,10 @@ from odmd_bench.leaderboard.specs import SET_TITLES
 
 
 def plot_boards(boards: Sequence[Board], path: str | os.PathLike[str], *, top: int = 3) -> None:
-    """PNG: per board with entries, mean percent error per set per method (bars) and
-    median percent error against true depth (binned) for the ``top`` best methods.
+    """Write the boards' figure to ``path`` (PNG).
+
+    Per board with entries: mean percent error per set per method (bars) and median
+    percent error against true depth (binned) for the ``top`` best methods.
 
     Raises:
         ModuleNotFoundError: When matplotlib is missing (it is an optional extra).
@@ -21,7 +23,7 @@ def plot_boards(boards: Sequence[Board], path: str | os.PathLike[str], *, top: i
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    from odmd_bench.data.io import atomic_path
+    from odmd_bench.data.atomic import atomic_path
 
     boards = [bd for bd in boards if bd.rows]
     n = max(1, len(boards))

@@ -1,0 +1,269 @@
+"""Files written safely: atomically, under a lock, with OS failures as package errors.
+
+Every writer of the package goes through :func:`atomic_path` (or :func:`atomic_write`):
+the new file is written beside the target and moved over it only when complete, so a
+reader sees the old file or the new one, never half of one, and a killed writer's
+temporary file is removed by the next writer (:func:`clean_stale_temps`). Writers of one
+file across processes serialise with :func:`locked`. An OS failure (full disk, read-only
+folder, a folder where a file belongs...) becomes a
+:class:`~odmd_bench.errors.StorageError` (an ``OSError``) naming the path, the cause and
+the fix (:func:`storage_error`).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import errno as errno_codes
+import os
+import re
+import sys
+import tempfile
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import IO, Any
+
+from odmd_bench.errors import MissingDataError, OdmdError, StorageError
+
+#: Temporary files of a dead writer (or of any writer, after this many seconds) are
+#: removed by the next writer of the same file.
+STALE_TEMP_SECONDS = 3600.0
+
+
+# --------------------------------------------------------------------- OS failures
+
+
+def os_cause(e: BaseException) -> tuple[str, int | None]:
+    """A short cause (``File too large (errno 27)``) and the errno, where known."""
+    code = e.errno if isinstance(e, OSError) and isinstance(e.errno, int) else None
+    text = str(e)
+    if code is None:
+        m = re.search(r"errno = (\d+)", text)
+        code = int(m.group(1)) if m else None
+    if code is not None:
+        return f"{os.strerror(code)} (errno {code})", code
+    text = re.sub(r"\s+", " ", text).strip()
+    # h5py repeats HDF5's long internal context in parentheses; keep its first part.
+    text = re.sub(r" \(file read failed: time = .*", "", text)
+    return (text[:200] + "...") if len(text) > 200 else text or type(e).__name__, None
+
+
+_FIXES = {
+    errno_codes.ENOSPC: "free space on that disk, or point --data-dir / $ODMD_BENCH_DATA at another folder",
+    errno_codes.EFBIG: "raise the file size limit (ulimit -f), or point --data-dir / $ODMD_BENCH_DATA elsewhere",
+    errno_codes.EDQUOT: "free space within your disk quota, or point --data-dir / $ODMD_BENCH_DATA elsewhere",
+    errno_codes.EACCES: "make that folder writable (and its files readable), or point --data-dir / "
+    "$ODMD_BENCH_DATA at a folder of yours",
+    errno_codes.EPERM: "make that folder writable, or point --data-dir / $ODMD_BENCH_DATA at a folder of yours",
+    errno_codes.EROFS: "that file system is read-only: point --data-dir / $ODMD_BENCH_DATA at a writable folder",
+    errno_codes.ENOTDIR: "a part of that path is a file, not a folder: point --data-dir / $ODMD_BENCH_DATA "
+    "at a folder",
+    errno_codes.EISDIR: "a folder stands where the file belongs: remove it (rm -r PATH) and run the command again",
+}
+
+
+def storage_error(
+    e: BaseException, path: str | os.PathLike[str], action: str, fix: str | None = None
+) -> StorageError:
+    """A :class:`StorageError` for ``e``: ``cannot ACTION PATH: CAUSE; FIX``."""
+    cause, code = os_cause(e)
+    hint = fix or _FIXES.get(code or -1, "check the path and its permissions, then run the command again")
+    hint = hint.replace("PATH", str(path))
+    cls = MissingDataError if code == errno_codes.ENOENT else StorageError
+    return cls(f"cannot {action} {path}: {cause}; {hint}", errno=code, filename=str(path))
+
+
+def is_os_failure(e: BaseException) -> bool:
+    """True for an error of the operating system (not of a damaged file's contents)."""
+    if isinstance(e, OSError) and isinstance(e.errno, int):
+        return True
+    return isinstance(e, RuntimeError | OSError) and re.search(r"errno = \d+", str(e)) is not None
+
+
+def ensure_folder(folder: Path) -> None:
+    """Create ``folder`` (and its parents), or raise a :class:`StorageError` saying why not."""
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except FileExistsError:
+        raise StorageError(
+            f"cannot use {folder} as a folder: it is a file; point --data-dir / $ODMD_BENCH_DATA "
+            "at a folder (or move the file away)",
+            errno=errno_codes.ENOTDIR,
+            filename=str(folder),
+        ) from None
+    except OSError as e:
+        raise storage_error(e, folder, "create the folder") from None
+
+
+# ------------------------------------------------------------------ atomic writes
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+def _temp_prefix(target: Path) -> str:
+    return f".{target.name}."
+
+
+def _temp_beside(target: Path) -> tuple[int, str]:
+    ensure_folder(target.parent)
+    try:
+        # The writer's pid is in the name, so that a later writer can tell a dead
+        # writer's leftover from a live writer's file (see clean_stale_temps).
+        fd, tmp = tempfile.mkstemp(
+            prefix=f"{_temp_prefix(target)}{os.getpid()}.", suffix=".tmp", dir=target.parent
+        )
+        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; give the file normal permissions
+    except OSError as e:
+        raise storage_error(e, target.parent, "write into") from None
+    return fd, tmp
+
+
+def _pid_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OSError):
+        return True  # another user's live process, or no way to tell: keep its file
+    return True
+
+
+def clean_stale_temps(target: str | os.PathLike[str], max_age: float = STALE_TEMP_SECONDS) -> list[Path]:
+    """Remove this package's temporary files for ``target`` left by dead writers.
+
+    Only files named as :func:`atomic_path` names them (``.NAME.PID.XXXX.tmp`` beside
+    ``target``) are considered. One is removed when its writer's process no longer
+    exists on this machine, or when it is older than ``max_age`` seconds (a dead
+    writer whose pid was reused; leftovers of earlier versions without a pid). A
+    live writer's recent temporary file is never touched. Returns the removed paths.
+    """
+    target = Path(target)
+    prefix = _temp_prefix(target)
+    removed: list[Path] = []
+    try:
+        entries = list(target.parent.iterdir())
+    except OSError:
+        return removed
+    now = time.time()
+    for p in entries:
+        name = p.name
+        if not (name.startswith(prefix) and name.endswith(".tmp")):
+            continue
+        middle = name[len(prefix) : -len(".tmp")]
+        pid_text, _, _ = middle.partition(".")
+        try:
+            st = p.lstat()
+        except OSError:
+            continue
+        if not p.is_file() or p.is_symlink():
+            continue
+        old = now - st.st_mtime > max_age
+        dead = pid_text.isdigit() and int(pid_text) != os.getpid() and not _pid_alive(int(pid_text))
+        if old or dead:
+            with contextlib.suppress(OSError):
+                p.unlink()
+                removed.append(p)
+    return removed
+
+
+@contextlib.contextmanager
+def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
+    """A temporary file name beside ``path``; on success, the file is moved over ``path``.
+
+    If the body raises (or the process dies), ``path`` is untouched: an existing good
+    file is never lost and no half-written file is left under the final name (a
+    SIGKILLed writer's temporary file is removed by the next writer, see
+    :func:`clean_stale_temps`). OS failures of the file operations (full disk,
+    read-only folder, a folder in the file's place...) raise :class:`StorageError`.
+    For writers that want a file name (h5py, savefig); see also :func:`atomic_write`.
+    """
+    target = Path(path)
+    clean_stale_temps(target)
+    fd, tmp = _temp_beside(target)
+    os.close(fd)
+    try:
+        yield Path(tmp)
+        try:
+            with open(tmp, "rb+") as fh:
+                os.fsync(fh.fileno())
+            os.replace(tmp, target)
+        except OSError as e:
+            raise storage_error(e, target, "write") from None
+    except OSError as e:
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(tmp)
+        if isinstance(e, OdmdError) or e.errno not in (
+            errno_codes.ENOSPC,
+            errno_codes.EFBIG,
+            errno_codes.EDQUOT,
+            errno_codes.EIO,
+        ):
+            raise
+        raise storage_error(e, target, "write") from None
+    except BaseException:
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(tmp)
+        raise
+
+
+@contextlib.contextmanager
+def atomic_write(path: str | os.PathLike[str], mode: str = "wb") -> Iterator[IO[Any]]:
+    """Open a temporary file beside ``path`` for writing; on success it replaces ``path``.
+
+    See :func:`atomic_path`.
+    """
+    with atomic_path(path) as tmp, open(tmp, mode) as fh:
+        yield fh
+
+
+@contextlib.contextmanager
+def locked(path: str | os.PathLike[str]) -> Iterator[Path]:
+    """Hold an exclusive lock for writing ``path``, across processes.
+
+    The lock is ``fcntl.flock`` (``msvcrt.locking`` on Windows) on the file
+    ``.NAME.lock`` beside ``path``, which stays (deleting a lock file lets two
+    writers lock two different files). Readers do not lock: every write replaces the
+    file atomically, so a reader sees the old file or the new one. Blocks until the
+    lock is free. Yields the lock file's path.
+    """
+    target = Path(path)
+    ensure_folder(target.parent)
+    lock = target.parent / f".{target.name}.lock"
+    try:
+        fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o666 & ~_umask())
+    except OSError as e:
+        raise storage_error(e, lock, "create the lock file") from None
+    try:
+        if sys.platform == "win32":  # pragma: no cover - not run on Linux CI
+            import msvcrt
+
+            while True:  # LK_LOCK tries for 10 s, then raises: wait as long as flock does
+                try:
+                    msvcrt.locking(fd, msvcrt.LK_LOCK, 1)
+                    break
+                except OSError:
+                    continue
+        else:
+            import fcntl
+
+            fcntl.flock(fd, fcntl.LOCK_EX)
+        yield lock
+    finally:
+        os.close(fd)  # closing the descriptor releases the lock
+
+
+__all__ = [
+    "STALE_TEMP_SECONDS",
+    "atomic_path",
+    "atomic_write",
+    "clean_stale_temps",
+    "ensure_folder",
+    "is_os_failure",
+    "locked",
+    "os_cause",
+    "storage_error",
+]

@@ -1,0 +1,261 @@
+"""The rows of a sequences CSV (:mod:`odmd_bench.data.sequences`): parsed, checked, grouped.
+
+Two readers give the same :class:`Rows`: the pandas C parser (vectorised) for a
+well-formed file, after byte-level checks, and a row-by-row reader with :mod:`csv` that
+locates each problem, for anything else. Then every rule on cell values is checked
+vectorised, and the rows are grouped into sequences ordered by observation. Every
+problem goes to one :class:`~odmd_bench.evaluation.problems.Problems`, located by line.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import re
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from odmd_bench.evaluation.problems import SHOWN, Problems, show
+
+#: Columns every sequences file must have, in the order files are written.
+REQUIRED_COLUMNS: tuple[str, ...] = (
+    "sequence",
+    "observation",
+    "x1",
+    "y1",
+    "x2",
+    "y2",
+    "cam_x",
+    "cam_y",
+    "cam_z",
+)
+#: Columns read when present; any other column is ignored.
+OPTIONAL_COLUMNS: tuple[str, ...] = ("depth",)
+
+_BOX = ("x1", "y1", "x2", "y2")
+_CAM = ("cam_x", "cam_y", "cam_z")
+_NUMERIC = ("observation", *_BOX, *_CAM)
+_FLOAT = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
+_NONFINITE = re.compile(r"[+-]?(?:nan|inf|infinity)", re.IGNORECASE)
+
+
+@dataclass
+class Rows:
+    """The cells of every row with the right number of fields, as arrays."""
+
+    lines: np.ndarray  # (M,) int, 1-based line of each row
+    sequence: np.ndarray  # (M,) object, stripped names
+    numbers: np.ndarray  # (M, 8) observation, x1, y1, x2, y2, cam_x, cam_y, cam_z; NaN: empty
+    depth: np.ndarray | None  # (M,) NaN: empty
+
+
+def header_columns(data: bytes, problems: Problems) -> tuple[list[str], dict[str, int]] | None:
+    """The header's cells and each column's position.
+
+    Returns None where a required column is missing (the problems added to ``problems``).
+    """
+    end = data.find(b"\n")
+    first = data[: end if end >= 0 else len(data)].decode("utf-8")
+    try:
+        header = [c.strip() for c in next(csv.reader([first.rstrip("\r")]))]
+    except (csv.Error, StopIteration):
+        header = []
+    cols: dict[str, int] = {}
+    for i, name in enumerate(header):
+        if name in cols:
+            problems.add(f"column {name!r} appears more than once in the header")
+        cols.setdefault(name, i)
+    missing = [c for c in REQUIRED_COLUMNS if c not in cols]
+    if missing:
+        import difflib
+
+        spare = [h for h in header if h not in REQUIRED_COLUMNS + OPTIONAL_COLUMNS]
+        for c in missing:
+            near = difflib.get_close_matches(c, spare, n=1, cutoff=0.6)
+            problems.add(
+                f"missing column {c!r}" + (f" (the header has {near[0]!r}: misspelt?)" if near else "")
+            )
+        if len(header) == 1:
+            for sep, name in ((";", "semicolons"), ("\t", "tabs"), ("|", "bars")):
+                if sep in header[0]:
+                    problems.add(f"the header {show(header[0])} seems to use {name} as separator; use commas")
+                    break
+        problems.add(
+            f"expected the columns {', '.join(REQUIRED_COLUMNS)} (optional: depth; others are ignored); "
+            f"the header is {show(','.join(header), 120)}"
+        )
+    return None if problems else (header, cols)
+
+
+def fast_rows(data: bytes, header: list[str], cols: dict[str, int]) -> Rows | None:
+    """The rows by the pandas C parser, or None when the file needs the careful reader.
+
+    Taken only when the file has no quote and no line end but LF or CRLF, holds exactly
+    the header's number of commas on every line, and pandas reads every cell of the
+    columns used as a number or an empty cell. Every line has the header's number of
+    fields: pandas refuses a line with more, and with the total of commas right no line
+    can then have fewer (a blank line has none). So a row's line is its index + 2.
+    """
+    returns = data.count(b"\r")
+    if b'"' in data or (returns and returns != data.count(b"\r\n")):
+        return None
+    n_lines = data.count(b"\n") + (not data.endswith(b"\n"))
+    if n_lines < 2 or data.count(b",") != (len(header) - 1) * n_lines:
+        return None
+    import pandas as pd
+
+    used = ["sequence", *_NUMERIC] + (["depth"] if "depth" in cols else [])
+    dtypes: dict[int, Any] = {i: object for i in range(len(header))}  # ignored columns: any text
+    dtypes.update({cols[c]: np.float64 for c in used if c != "sequence"})
+    try:
+        df = pd.read_csv(
+            io.BytesIO(data),
+            header=None,
+            skiprows=1,
+            names=list(range(len(header))),
+            dtype=dtypes,
+            keep_default_na=False,
+            na_values=[""],
+            index_col=False,
+            encoding="utf-8",
+            engine="c",
+            low_memory=False,
+        )
+    except (ValueError, pd.errors.ParserError):  # a cell that is no number, a long line
+        return None
+    m = len(df)
+    if m != n_lines - 1:
+        return None
+    seq = df[cols["sequence"]].to_numpy(dtype=object)
+    codes, uniques = pd.factorize(seq, sort=False, use_na_sentinel=False)
+    stripped = np.array(["" if u is None or u != u else str(u).strip() for u in uniques], dtype=object)
+    numbers = np.empty((m, len(_NUMERIC)))
+    for j, c in enumerate(_NUMERIC):
+        numbers[:, j] = df[cols[c]].to_numpy(dtype=np.float64)
+    depth = df[cols["depth"]].to_numpy(dtype=np.float64) if "depth" in cols else None
+    return Rows(np.arange(m) + 2, stripped[codes], numbers, depth)
+
+
+def careful_rows(text: str, header: list[str], cols: dict[str, int], problems: Problems) -> Rows:
+    """Every row read with :mod:`csv` and every cell checked, each problem located."""
+    reader = csv.reader(io.StringIO(text, newline=""), strict=True)
+    lines: list[int] = []
+    names: list[str] = []
+    numbers: list[list[float]] = []
+    depths: list[float] = []
+    width = len(header)
+    has_depth = "depth" in cols
+    try:
+        next(reader)
+        for record in reader:
+            cells = [c.strip() for c in record]
+            if not any(cells):
+                continue
+            line = reader.line_num
+            if len(cells) != width:
+                problems.add(
+                    f"wrong number of fields (every row must have {width}, like the header)",
+                    f"line {line} ({len(cells)})",
+                )
+                continue
+            row = []
+            for c in _NUMERIC + (("depth",) if has_depth else ()):
+                row.append(_cell(cells[cols[c]], c, line, problems))
+            lines.append(line)
+            names.append(cells[cols["sequence"]])
+            numbers.append(row[: len(_NUMERIC)])
+            if has_depth:
+                depths.append(row[-1])
+    except csv.Error as e:
+        problems.add(f"line {max(reader.line_num, 1)}: not valid CSV ({e})")
+    arr = np.array(numbers, dtype=np.float64).reshape(-1, len(_NUMERIC))
+    return Rows(
+        np.array(lines, dtype=np.int64),
+        np.array(names, dtype=object),
+        arr,
+        np.array(depths, dtype=np.float64) if has_depth else None,
+    )
+
+
+def _cell(s: str, column: str, line: int, problems: Problems) -> float:
+    """A cell's number, with text that is no number reported to ``problems``.
+
+    NaN for an empty cell, inf for a non-finite one (reported later), 0 for text that is
+    no number (reported here).
+    """
+    if not s:
+        return np.nan
+    if _FLOAT.fullmatch(s):
+        return float(s)
+    if _NONFINITE.fullmatch(s):
+        return np.inf
+    problems.add(f"{column} is not a number", f"line {line} ({show(s)})")
+    return 0.0
+
+
+def check_rows(rows: Rows, problems: Problems) -> None:
+    """The rules on cell values, vectorised; every breach located by line."""
+    lines, num = rows.lines, rows.numbers
+    problems.add_lines("sequence is empty", rows.sequence == "", lines)
+    for j, c in enumerate(_NUMERIC):
+        if c in _BOX:
+            continue
+        problems.add_lines(f"{c} is empty", np.isnan(num[:, j]), lines)
+    for j, c in enumerate(_NUMERIC):
+        problems.add_lines(f"{c} is not finite", np.isinf(num[:, j]), lines)
+    box = num[:, 1:5]
+    empty = np.isnan(box)
+    problems.add_lines(
+        "box partly empty (a missed detection leaves all four of x1, y1, x2, y2 empty)",
+        empty.any(axis=1) & ~empty.all(axis=1),
+        lines,
+    )
+    detected = ~empty.any(axis=1) & np.isfinite(box).all(axis=1)
+    with np.errstate(invalid="ignore"):
+        problems.add_lines("box with x2 <= x1", detected & ~(box[:, 2] > box[:, 0]), lines)
+        problems.add_lines("box with y2 <= y1", detected & ~(box[:, 3] > box[:, 1]), lines)
+        if rows.depth is not None:
+            d = rows.depth
+            problems.add_lines("depth is not finite", np.isinf(d), lines)
+            problems.add_lines(
+                "depth must be > 0 (a true depth, metres)", np.isfinite(d) & (d <= 0), lines, d
+            )
+
+
+def group(rows: Rows, problems: Problems) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Group the rows by sequence.
+
+    Returns:
+        ``(names, order, starts, counts)``: the sequences in order of first appearance
+        and the rows sorted by sequence then observation.
+    """
+    import pandas as pd
+
+    codes, uniques = pd.factorize(rows.sequence, sort=False)
+    names = np.asarray(uniques, dtype=object)
+    obs = rows.numbers[:, 0]
+    order = np.lexsort((obs, codes))
+    counts = np.bincount(codes, minlength=len(names))
+    starts = np.concatenate(([0], np.cumsum(counts)[:-1]))
+    sc, so = codes[order], obs[order]
+    dup = np.flatnonzero((sc[1:] == sc[:-1]) & (so[1:] == so[:-1]))
+    kind = "observation repeated within a sequence"
+    for i in dup[:SHOWN]:
+        a, b = order[i], order[i + 1]
+        problems.add(
+            kind,
+            f"lines {rows.lines[a]} and {rows.lines[b]} (sequence {show(str(names[codes[a]]))}, "
+            f"observation {obs[a]:g})",
+        )
+    if dup.size > SHOWN:
+        problems.add(kind, count=int(dup.size - SHOWN))
+    single = np.flatnonzero((counts == 1) & (names != ""))  # an empty name is reported already
+    problems.add_lines(
+        "sequence with one observation (at least 2 are needed)",
+        np.ones(single.size, dtype=bool),
+        rows.lines[order[starts[single]]],
+        names[single],
+    )
+    return names, order, starts, counts

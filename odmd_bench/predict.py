@@ -1,0 +1,217 @@
+"""A registered method run on a user's own sequences (:mod:`odmd_bench.data.sequences`).
+
+:func:`predict_sequences` gives each sequence's depth at its last observation, choosing
+observations evenly for a method built for a fixed number of them
+(:func:`select_observations`); :func:`format_depths` writes the result as the CSV that
+``odmd-bench predict`` writes, with the percent error where the truth is known.
+"""
+
+from __future__ import annotations
+
+import inspect
+import io
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from odmd_bench.data.examples import Examples
+from odmd_bench.data.sequences import Sequences, number_cell, text_cell
+from odmd_bench.errors import DataError, UsageError
+from odmd_bench.evaluation.metrics import percent_error
+from odmd_bench.evaluation.problems import SHOWN, show
+
+
+def select_observations(examples: Examples, count: int) -> Examples:
+    """``count`` observations chosen evenly, the first and the last kept.
+
+    Observation ``round((n_obs - 1) * i / (count - 1))`` for ``i = 0 .. count - 1``
+    (halves rounded up): distinct because the spacing is at least 1. The last is the
+    one whose depth is estimated and the camera stays relative to it.
+
+    Args:
+        examples: examples of ``n_obs >= count`` observations.
+        count: observations to keep, >= 2.
+
+    Returns:
+        The same examples with ``count`` observations (``examples`` itself when
+        ``n_obs == count``); per-observation ``extras`` are dropped.
+
+    Raises:
+        DataError: fewer than ``count`` observations.
+
+    Example:
+        >>> import odmd_bench
+        >>> ex = odmd_bench.generate(2, rng=0)
+        >>> select_observations(ex, 4).n_obs
+        4
+        >>> observation_indices(10, 4).tolist()
+        [0, 3, 6, 9]
+    """
+    if count < 2:
+        raise UsageError(f"count must be >= 2, got {count}")
+    n_obs = examples.n_obs
+    if n_obs < count:
+        raise DataError(f"{count} observations are needed, the examples have {n_obs}")
+    if n_obs == count:
+        return examples
+    idx = observation_indices(n_obs, count)
+    return Examples(
+        boxes=examples.boxes[:, idx],
+        detected=examples.detected[:, idx],
+        camera=examples.camera[:, idx],
+        depth=examples.depth.copy(),
+        observation_depth=None if examples.observation_depth is None else examples.observation_depth[:, idx],
+        attrs=dict(examples.attrs),
+    )
+
+
+def observation_indices(n_obs: int, count: int) -> np.ndarray:
+    """The ``count`` observation indices :func:`select_observations` keeps out of ``n_obs``."""
+    return np.floor(np.linspace(0.0, n_obs - 1, count) + 0.5).astype(np.intp)
+
+
+@dataclass(frozen=True)
+class SequenceDepths:
+    """What :func:`predict_sequences` gives.
+
+    Attributes:
+        names: (N,) sequence names.
+        depth: (N,) the estimated depth at each sequence's last observation, metres.
+        truth: (N,) the true depth where the file gives it, else NaN.
+        observations: (N,) int, observations the method used.
+        detections: (N,) int, how many of those had a detection.
+        counts: the method's counted fallbacks, summed over the sequences, and what it
+            says of its run (strings).
+        method: the method's name.
+    """
+
+    names: tuple[str, ...]
+    depth: np.ndarray
+    truth: np.ndarray
+    observations: np.ndarray
+    detections: np.ndarray
+    counts: dict[str, int | str]
+    method: str
+
+
+def method_observations(method: Any) -> int | None:
+    """The number of observations a method is built for, or None where it takes any number.
+
+    Read from the method's ``observations``, else from ``OBSERVATIONS`` in the module that
+    defines its ``predict``.
+    """
+    value = getattr(method, "observations", None)
+    if value is None:
+        module = inspect.getmodule(getattr(method, "predict", method))
+        value = getattr(module, "OBSERVATIONS", None)
+    return None if value is None else int(value)
+
+
+def predict_sequences(sequences: Sequences, method: str | Any, **options: Any) -> SequenceDepths:
+    """The depth at the last observation of every sequence, by a registered method.
+
+    A method whose module declares ``OBSERVATIONS = k`` (DBox: 10) gets ``k``
+    observations chosen evenly with the first and the last kept
+    (:func:`select_observations`) from a longer sequence; a shorter one is refused.
+    Every other method takes all the observations.
+
+    Args:
+        sequences: from :func:`read_sequences`.
+        method: a registered name (:func:`odmd_bench.methods.load`) or a loaded method.
+        **options: the method's options (``config=``, ``weights=``, ``mode=``).
+
+    Returns:
+        :class:`SequenceDepths`.
+
+    Raises:
+        UsageError: an unknown method or option; a method that needs the camera
+            intrinsics and none were given; sequences too short for the method.
+    """
+    from odmd_bench import methods  # (imported on use: the package's import stays light)
+
+    m = methods.load(method) if isinstance(method, str) else method
+    name = str(getattr(m, "name", method))
+    wanted = method_observations(m)
+    n = len(sequences)
+    depth = np.empty(n)
+    used = np.empty(n, dtype=np.int64)
+    detections = np.empty(n, dtype=np.int64)
+    counts: dict[str, int | str] = {}
+    if wanted is not None:
+        short = sequences.n_obs < wanted
+        if short.any():
+            first = [sequences.names[i] for i in np.flatnonzero(short)[:SHOWN]]
+            raise UsageError(
+                f"method {name!r} takes {wanted} observations per sequence; "
+                f"{int(short.sum())} of {n} sequences have fewer: "
+                + ", ".join(show(s) for s in first)
+                + (", ..." if short.sum() > SHOWN else "")
+                + f" (longer sequences give {wanted} chosen evenly, the first and the last kept)"
+            )
+    for index, ex in sequences.groups:
+        if wanted is not None:
+            ex = select_observations(ex, wanted)
+        try:
+            d, c = m.run(ex, **options) if hasattr(m, "run") else m.predict_report(ex, **options)
+        except DataError as e:
+            if "intrinsics" in e.message and ex.attrs.get("fx") is None:
+                raise UsageError(
+                    f"method {name!r} needs the camera intrinsics: give them with --intrinsics FX FY CX CY "
+                    "(pixels, in the same pixel frame as the boxes), or intrinsics= from Python"
+                ) from None
+            raise
+        depth[index] = d
+        used[index] = ex.n_obs
+        detections[index] = ex.detected.sum(axis=1)
+        for key, value in c.items():
+            if isinstance(value, str):  # what the method says of its run (e.g. the weights)
+                counts[key] = value
+            elif key != "n":
+                before = counts.get(key, 0)
+                counts[key] = (before if isinstance(before, int) else 0) + int(value)
+    return SequenceDepths(
+        names=sequences.names,
+        depth=depth,
+        truth=sequences.depth,
+        observations=used,
+        detections=detections,
+        counts=counts,
+        method=name,
+    )
+
+
+def format_depths(result: SequenceDepths) -> str:
+    """The output CSV of the depths per sequence.
+
+    Columns ``sequence,depth,observations,detections`` and, where any truth is given,
+    ``true_depth,percent_error`` (empty where unknown).
+    """
+    has_truth = bool(np.isfinite(result.truth).any())
+    header = ["sequence", "depth", "observations", "detections"]
+    if has_truth:
+        header += ["true_depth", "percent_error"]
+    known = np.isfinite(result.truth) & np.isfinite(result.depth)
+    pct = np.full(len(result.names), np.nan)
+    pct[known] = percent_error(result.truth[known], result.depth[known])
+    buf = io.StringIO()
+    buf.write(",".join(header) + "\n")
+    depth = result.depth.tolist()
+    obs, det = result.observations.tolist(), result.detections.tolist()
+    truth, err = result.truth.tolist(), pct.tolist()
+    for i, name in enumerate(result.names):
+        row = f"{text_cell(name)},{depth[i]!r},{obs[i]},{det[i]}"
+        if has_truth:
+            row += f",{number_cell(truth[i])},{number_cell(err[i])}"
+        buf.write(row + "\n")
+    return buf.getvalue()
+
+
+__all__ = [
+    "SequenceDepths",
+    "format_depths",
+    "method_observations",
+    "observation_indices",
+    "predict_sequences",
+    "select_observations",
+]
