@@ -113,6 +113,7 @@ Hyperparameters (:data:`DEFAULT_PARAMS`) were chosen on the ``val`` sets only by
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -335,6 +336,18 @@ def predict_details(
     return fit(boxes, usable, camera, cam_model, params)
 
 
+def _chunked(
+    fit_slice: Callable[[slice], tuple[np.ndarray, np.ndarray, dict[str, int]]], n: int
+) -> tuple[np.ndarray, np.ndarray, dict[str, int]]:
+    """A fit of ``n`` examples run ``CHUNK`` at a time, joined (examples are independent).
+
+    Chunks keep the working arrays in cache.
+    """
+    parts = [fit_slice(slice(s, s + CHUNK)) for s in range(0, n, CHUNK)]
+    counts = {k: sum(part[2][k] for part in parts) for k in parts[0][2]}
+    return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts]), counts
+
+
 def fit(
     boxes: np.ndarray,
     usable: np.ndarray,
@@ -357,17 +370,7 @@ def fit(
     """
     n = boxes.shape[0]
     if n > CHUNK:
-        # Examples are independent; chunks keep the working arrays in cache.
-        parts = [
-            fit(boxes[s : s + CHUNK], usable[s : s + CHUNK], camera[s : s + CHUNK], cam_model, params)
-            for s in range(0, n, CHUNK)
-        ]
-        counts = {k: sum(part[2][k] for part in parts) for k in parts[0][2]}
-        return (
-            np.concatenate([part[0] for part in parts]),
-            np.concatenate([part[1] for part in parts]),
-            counts,
-        )
+        return _chunked(lambda sl: fit(boxes[sl], usable[sl], camera[sl], cam_model, params), n)
     enough = usable.sum(axis=1) >= 2
     base = _Problem.build(boxes, usable, camera, cam_model, params.min_depth, params.max_depth_ratio)
     z0 = _linear_start(base, params)
@@ -421,16 +424,7 @@ def fit_scale(
     """
     n = boxes.shape[0]
     if n > CHUNK:
-        parts = [
-            fit_scale(boxes[s : s + CHUNK], usable[s : s + CHUNK], camera[s : s + CHUNK], params)
-            for s in range(0, n, CHUNK)
-        ]
-        counts = {k: sum(part[2][k] for part in parts) for k in parts[0][2]}
-        return (
-            np.concatenate([part[0] for part in parts]),
-            np.concatenate([part[1] for part in parts]),
-            counts,
-        )
+        return _chunked(lambda sl: fit_scale(boxes[sl], usable[sl], camera[sl], params), n)
     m = usable.astype(np.float64)  # (N, n_obs)
     k = m.sum(axis=1)
     enough = k >= 2
@@ -473,7 +467,8 @@ def _scale_posterior(
         log_size: (N, n_obs, 2) ``log w, log h`` (anything where ``m`` is 0).
         m: (N, n_obs) 1.0 where an observation is used (at least two per example).
         cz: (N, n_obs) camera ``z`` (0 where unused).
-        lo, hi: (N,) log of the prior's depth range.
+        lo: (N,) log of the prior's smallest depth.
+        hi: (N,) log of the prior's largest depth.
         params: ``scale_grid`` and ``scale_refinements``.
 
     Returns:

@@ -1,24 +1,28 @@
-"""DBox speed: a training step and inference, against the original release's forward pass.
+r"""DBox speed: a training step and inference, against the original release's forward pass.
 
-Run:
+Run (and keep the result, named by commit and CPU, as ``docs/dbox.md`` says):
 
-    .venv/bin/pytest benchmarks/bench_dbox.py --benchmark-only -p no:randomly \\
-        --benchmark-columns=min,median,mean,rounds -s
+    .venv/bin/pytest benchmarks/bench_dbox.py --benchmark-only -p no:randomly \
+        --benchmark-columns=min,median,mean,rounds -s \
+        --benchmark-json benchmarks/results/<commit>-<cpu>-dbox.json
 
 Each case runs with 1 torch thread and with 2 (this machine's cores):
 
 - ``test_train_step``: one training step as ``train-dbox`` does it: generate 512
   examples (preset odmd, perturbation both), build the f_Rel input, forward,
-  L1 loss, backward, Adam. Target on a 2-core machine: <= 32 ms.
+  L1 loss, backward, Adam.
 - ``test_inference``: forward pass on 1,000 examples (input already built), no
-  gradients. Target <= 15 ms.
-- ``impl="fast"`` is ``DBox.forward`` (and its hand-written backward) as shipped;
-  ``impl="plain"`` is the same code with oneDNN's kernel turned off (plain torch
-  products, as on a torch build without oneDNN); ``impl="reference"`` is
+  gradients.
+- ``impl="onednn"`` is ``DBox.forward`` (and its hand-written backward) with every
+  product on oneDNN's kernel (``ODMD_BENCH_ONEDNN=1``); ``impl="plain"`` is the same
+  code on plain torch products (``ODMD_BENCH_ONEDNN=0``, as on a torch build without
+  oneDNN); ``impl="auto"`` is what ships: the kernel the per-process probe picks
+  (:func:`odmd_bench_baselines.dbox.model.use_onednn`; ``extra_info["auto_picks"]``
+  says which); ``impl="reference"`` is
   :func:`odmd_bench_baselines.dbox.model.reference_forward`, the original release's forward
   written as it was (all four gate blocks computed twice per observation, per-step
   slices, ``cat`` before every FC layer) with autograd's backward. All are measured in
-  the same run on the same data, so ``median(reference) / median(fast)`` is the
+  the same run on the same data, so ``median(reference) / median(impl)`` is the
   speed-up.
 - ``test_ratio`` prints the ratios from interleaved timings in one process.
 
@@ -42,7 +46,8 @@ from odmd_bench_baselines.dbox.train import make_optimizer  # noqa: E402
 
 import odmd_bench  # noqa: E402
 
-IMPLS = ("fast", "plain", "reference")
+IMPLS = ("onednn", "plain", "auto", "reference")
+SETTING = {"onednn": "1", "plain": "0", "auto": "auto", "reference": "auto"}
 T = TypeVar("T")
 THREADS = (1, 2)
 
@@ -62,19 +67,18 @@ def _forward(model: DBox, impl: str) -> Callable[[torch.Tensor], torch.Tensor]:
 
 
 def _as(impl: str, fn: Callable[[], T]) -> Callable[[], T]:
-    """``fn``, run with oneDNN's kernel turned off for ``impl="plain"``."""
-    if impl != "plain":
-        return fn
+    """``fn``, run with the kernel setting of ``impl``."""
 
     def run() -> T:
-        available = model_module.onednn_available
-        model_module.onednn_available = lambda: False  # type: ignore[assignment]
-        try:
+        with model_module.kernels(SETTING[impl]):
             return fn()
-        finally:
-            model_module.onednn_available = available
 
     return run
+
+
+def _auto_picks(train: bool) -> str:
+    with model_module.kernels("auto"):
+        return "onednn" if model_module.use_onednn(train) else "plain"
 
 
 def _train_step(model: DBox, impl: str) -> Callable[[], float]:
@@ -109,7 +113,9 @@ def _inference(model: DBox, impl: str) -> Callable[[], torch.Tensor]:
 def test_train_step(benchmark, threads: int, impl: str) -> None:  # type: ignore[no-untyped-def]
     step = _train_step(DBox(generator=torch.Generator().manual_seed(0)), impl)
     step()  # warm-up (allocator, first-call costs)
-    benchmark.extra_info.update(threads=threads, impl=impl, batch=512, torch=torch.__version__)
+    benchmark.extra_info.update(
+        threads=threads, impl=impl, batch=512, torch=torch.__version__, auto_picks=_auto_picks(True)
+    )
     loss = benchmark.pedantic(step, rounds=15, iterations=1)
     assert np.isfinite(loss)
 
@@ -118,7 +124,9 @@ def test_train_step(benchmark, threads: int, impl: str) -> None:  # type: ignore
 def test_inference(benchmark, threads: int, impl: str) -> None:  # type: ignore[no-untyped-def]
     run = _inference(DBox(generator=torch.Generator().manual_seed(0)), impl)
     run()
-    benchmark.extra_info.update(threads=threads, impl=impl, examples=1000, torch=torch.__version__)
+    benchmark.extra_info.update(
+        threads=threads, impl=impl, examples=1000, torch=torch.__version__, auto_picks=_auto_picks(False)
+    )
     out = benchmark.pedantic(run, rounds=20, iterations=1)
     assert out.shape == (1000,)
 
@@ -130,7 +138,7 @@ def test_ratio(threads: int) -> None:
         "train step": {impl: _train_step(model, impl) for impl in IMPLS},
         "inference 1000": {impl: _inference(model, impl) for impl in IMPLS},
     }
-    for name, fns in cases.items():
+    for (name, fns), train in zip(cases.items(), (True, False), strict=True):
         times: dict[str, list[float]] = {impl: [] for impl in IMPLS}
         for fn in fns.values():
             fn()
@@ -141,5 +149,8 @@ def test_ratio(threads: int) -> None:
                 times[impl].append(time.perf_counter() - t0)
         ms = {impl: float(np.median(t)) * 1e3 for impl, t in times.items()}
         ratios = ", ".join(f"{i} {ms[i]:.1f} ms ({ms['reference'] / ms[i]:.2f}x)" for i in IMPLS[:-1])
-        print(f"\n{name}, {threads} thread(s): reference {ms['reference']:.1f} ms; {ratios}")
+        picks = _auto_picks(train)
+        print(
+            f"\n{name}, {threads} thread(s): reference {ms['reference']:.1f} ms; {ratios}; auto picks {picks}"
+        )
         assert all(v > 0 for v in ms.values())

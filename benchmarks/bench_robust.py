@@ -1,8 +1,8 @@
-"""Throughput of the robust reprojection method (target: >= 20,000 examples/s, one core).
+r"""Throughput of the robust reprojection method (target: >= 20,000 examples/s, one core).
 
 Run (one core; the method uses no BLAS, but keep OpenBLAS to one thread all the same):
 
-    OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 .venv/bin/pytest benchmarks/bench_robust.py \\
+    OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 .venv/bin/pytest benchmarks/bench_robust.py \
         --benchmark-only -p no:randomly --benchmark-columns=min,median,ops -s
 
 Data: 12,000 generated ODMD examples, 3,000 each of the perturbations normal, camera,

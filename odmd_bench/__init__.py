@@ -8,16 +8,20 @@ Importing the package loads numpy and h5py only; torch is needed by DBox alone.
 (8, 10, 4)
 """
 
+from odmd_bench.data.atomic import atomic_path, atomic_write
 from odmd_bench.data.config import PRESETS, CameraConfig, GeneratorConfig
 from odmd_bench.data.examples import Examples, fill_missing, nearest_detected_index
 from odmd_bench.data.generator import GENERATOR_VERSION, generate, stream
+from odmd_bench.data.hashing import file_sha256
 from odmd_bench.data.sequences import read_sequences
 from odmd_bench.data.store import ensure_generated, load, load_split
 from odmd_bench.errors import (
     ConfigError,
     DataError,
     ImportRefused,
+    MissingDataError,
     OdmdError,
+    StorageError,
     UsageError,
     ValidationError,
 )
@@ -41,15 +45,20 @@ __all__ = [
     "Examples",
     "GeneratorConfig",
     "ImportRefused",
+    "MissingDataError",
     "OdmdError",
+    "StorageError",
     "ParsedPredictions",
     "UsageError",
     "ValidationError",
     "__version__",
     "absolute_error",
+    "atomic_path",
+    "atomic_write",
     "all_sets_mean",
     "ensure_generated",
     "evaluate",
+    "file_sha256",
     "fill_missing",
     "generate",
     "load",

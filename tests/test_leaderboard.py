@@ -542,3 +542,20 @@ def test_frame_holds_the_leaderboard(board: Path, v1_data_dir: Path) -> None:
     assert {"perturb", "driving"}.isdisjoint(df.columns)  # no board with entries has them
     built = lb.build(board, v1_data_dir, n_resamples=FAST)
     assert lb.frame(built).equals(df)
+
+
+def test_board_data_is_rebuilt_where_stale(tmp_path: Path, original_release: Path) -> None:
+    """A data folder left by an older odmd-bench (older file format) is rebuilt, not refused."""
+    import h5py
+
+    from odmd_bench.data.registry import set_file
+    from odmd_bench.leaderboard.board import load_board_data
+
+    for benchmark in ("odmd-v1", "odmd-paper"):
+        first = load_board_data(benchmark, "test", tmp_path, original_release)
+        with h5py.File(set_file(benchmark, "test", tmp_path), "r+") as f:
+            f.attrs["format_version"] = 1  # what an older release wrote
+        again = load_board_data(benchmark, "test", tmp_path, original_release)
+        assert {s: ex.attrs["content_sha256"] for s, ex in again.items()} == {
+            s: ex.attrs["content_sha256"] for s, ex in first.items()
+        }

@@ -7,6 +7,7 @@ installed outside the repository with and without torch, is tested by
 
 from __future__ import annotations
 
+import os
 import re
 import subprocess
 import sys
@@ -14,6 +15,7 @@ from pathlib import Path
 
 import pytest
 
+import odmd_bench
 from odmd_bench import extras, methods
 from odmd_bench.errors import UsageError
 
@@ -115,3 +117,39 @@ def test_dbox_without_torch_exits_2_naming_the_extra(v1_data_dir: Path, tmp_path
     assert done.returncode == 2, done.stderr
     assert "pip install 'odmd-bench[dbox]'" in done.stderr
     assert "Traceback" not in done.stderr and not out.exists()
+
+
+def test_citation_version_is_the_package_version() -> None:
+    """CITATION.cff cites the version this checkout is."""
+    text = (ROOT / "CITATION.cff").read_text(encoding="utf-8")
+    versions = [
+        line.split(":", 1)[1].strip().strip("\"'")
+        for line in text.splitlines()
+        if line.startswith("version:")
+    ]
+    assert versions == [odmd_bench.__version__]
+
+
+def test_shell_completion_script_is_served() -> None:
+    """The completion line docs/format.md gives produces a bash function (click's completion)."""
+    env = {**os.environ, "_ODMD_BENCH_COMPLETE": "bash_source"}
+    script = Path(sys.executable).with_name("odmd-bench")  # the installed console script
+    out = subprocess.run([str(script)], env=env, capture_output=True, text=True, check=True)
+    assert "_odmd_bench_completion()" in out.stdout
+
+
+def test_no_module_is_shadowed_by_an_attribute_of_its_package() -> None:
+    """``import odmd_bench.X as m`` gives the module X wherever X is a module (no function of that name)."""
+    import importlib
+    import pkgutil
+
+    shadowed = []
+    for info in pkgutil.walk_packages(odmd_bench.__path__, "odmd_bench."):
+        if info.name.endswith("datasets"):
+            continue  # needs torch; it exports classes of other names
+        parent_name, _, child = info.name.rpartition(".")
+        parent = importlib.import_module(parent_name)
+        module = importlib.import_module(info.name)
+        if getattr(parent, child) is not module:
+            shadowed.append(info.name)
+    assert not shadowed

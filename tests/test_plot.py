@@ -263,3 +263,27 @@ def test_plot_without_matplotlib_names_the_extra(
     assert code == 2
     assert "odmd-bench plot needs matplotlib" in err and "odmd-bench[plot]" in err
     assert not out.exists()
+
+
+def test_the_readme_figure_numbers_are_what_the_command_writes(paper_data_dir: Path, tmp_path: Path) -> None:
+    """docs/driving-error.csv is reproduced by the README's command on the committed entries."""
+    repo = Path(__file__).resolve().parents[1]
+    entries = repo / "leaderboard" / "entries"
+    args = [
+        "plot",
+        str(entries / "dbox-p-z-per-set" / "odms-detection-test" / "predictions.csv.gz"),
+        str(entries / "dbox-abs-z-per-set" / "odms-detection-test" / "predictions.csv.gz"),
+        *("--benchmark", "odms-detection", "--split", "test", "--set", "driving"),
+        *("--label", "DBox$_p^z$", "--label", "DBox$_{Abs}^z$"),
+        *(
+            "-o",
+            str(tmp_path / "fig.png"),
+            "--csv",
+            str(tmp_path / "fig.csv"),
+            "--data-dir",
+            str(paper_data_dir),
+        ),
+    ]
+    r = CliRunner().invoke(cli, args)
+    assert r.exit_code == 0, r.output
+    assert (tmp_path / "fig.csv").read_bytes() == (repo / "docs" / "driving-error.csv").read_bytes()

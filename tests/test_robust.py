@@ -83,8 +83,11 @@ def test_scale_mode_is_exact_without_intrinsics_on_z_only_motion() -> None:
 
 
 def test_scale_mode_is_the_posterior_median_it_states() -> None:
-    """Independent check: a dense quadrature of the stated integrand (per unit log Z,
-    RSS(Z)^-(k-1) / Z^2 on the prior's range) has its median where scale mode says."""
+    """Independent check of scale mode's median by dense quadrature.
+
+    A dense quadrature of the stated integrand (per unit log Z,
+    RSS(Z)^-(k-1) / Z^2 on the prior's range) has its median where scale mode says.
+    """
     ex = odmd_bench.generate(6, preset="odms", perturbation="object", rng=21)
     depth = robust.predict(ex, mode="scale")
     bound = _scale_bound(ex)
@@ -309,9 +312,11 @@ def test_odms_detection_sets_need_scale_mode(paper_data_dir: Path) -> None:
 
 
 def test_scale_mode_on_odms_val_is_bounded_and_no_worse_than_box_ls(paper_data_dir: Path) -> None:
-    """The acceptance criterion of scale mode, on the val sets it was designed on: every
-    depth inside the prior (at most 6 times the camera travel beyond the nearest camera,
-    so no runaway), and a mean percent error no worse than Box_LS on each set."""
+    """The acceptance criterion of scale mode, on the val sets it was designed on.
+
+    Every depth inside the prior (at most 6 times the camera travel beyond the nearest camera,
+    so no runaway), and a mean percent error no worse than Box_LS on each set.
+    """
     from odmd_bench_baselines import box_ls
 
     sets = odmd_bench.load_split("val", "odms-detection", paper_data_dir)
@@ -325,8 +330,11 @@ def test_scale_mode_on_odms_val_is_bounded_and_no_worse_than_box_ls(paper_data_d
 
 
 def test_fit_minimises_the_stated_objective() -> None:
-    """Independent check with torch autograd: the depth found minimises the profile of
-    sum_i rho(|r_i|^2 / sigma_box^2) + |delta|^2 / sigma_camera^2 (other unknowns optimised)."""
+    """Independent check with torch autograd of the full-mode optimum.
+
+    The depth found minimises the profile of
+    sum_i rho(|r_i|^2 / sigma_box^2) + |delta|^2 / sigma_camera^2 (other unknowns optimised).
+    """
     torch = pytest.importorskip("torch")
     torch.set_num_threads(1)
     ex = odmd_bench.generate(3, perturbation="both", rng=3)

@@ -1,59 +1,218 @@
 """DBox (Griffin and Corso, CVPR 2021): an LSTM with peepholes over the observations.
 
-``predict(examples)`` runs the shipped weights (``weights/dbox_p.pt``, trained here by
-``odmd-bench train-dbox --config p``); ``predict(examples, weights=FILE)`` runs any
-checkpoint in the original release's layout (a state dict with keys ``W``, ``U``,
-``bias``, ``V``, ``linears.0.weight`` ... ``linears.6.bias``), such as the release's
-``DBox_pretrained_paper.pt``. Files are read with ``torch.load(weights_only=True)``
-(no code from a file is run) and checked key by key.
+``predict(examples)`` runs the shipped weights of a training configuration
+(``config=``: ``p``, ``abs``, ``ns`` for x,y,z camera motion; ``p-z``, ``ns-z``,
+``abs-z`` for z-axis motion only). The default follows the data (:func:`default_config`):
+``p-z`` for the ``odms-detection`` benchmark or any z-only camera motion, ``p`` otherwise,
+so the x,y,z model never runs on z-only data unless asked for by name.
+``selection="per-set"`` runs the paper's per-set selection (one checkpoint per ODMS set,
+each chosen on that set's val score) on the set named in ``examples.attrs["set"]``.
+``predict(examples, weights=FILE)`` runs any checkpoint in the original release's layout
+(a state dict with keys ``W``, ``U``, ``bias``, ``V``, ``linears.0.weight`` ...
+``linears.6.bias``), such as the release's ``DBox_pretrained_paper.pt``.
+
+Every checkpoint is hashed before torch reads it (:func:`verify_weights`): a shipped one
+must match the ``weights_sha256`` of the JSON record beside it; a user's file must match
+its record when one is beside it, or ``weights_sha256=`` when given; :func:`provenance`
+returns the hash checked, for the predictions' provenance. Files are then read
+with ``torch.load(weights_only=True)`` (no code from a file is run) and checked key by key.
 
 Importing this package does not import torch; the functions do.
 """
 
 from __future__ import annotations
 
+import hashlib
+import io
 import json
 import os
+import re
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from odmd_bench.data.examples import Examples
-from odmd_bench.errors import DataError
+from odmd_bench import DataError, Examples, UsageError
 
 if TYPE_CHECKING:
     from odmd_bench_baselines.dbox.model import DBox
 
+#: Observations per example the network takes (its input layer is sized for 10).
+OBSERVATIONS = 10
 WEIGHTS_DIR = Path(__file__).resolve().parent / "weights"
-#: The shipped weights by training configuration.
-SHIPPED = {"p": WEIGHTS_DIR / "dbox_p.pt", "p-z": WEIGHTS_DIR / "dbox_p-z.pt"}
-DEFAULT_WEIGHTS = SHIPPED["p"]
+#: The paper's six training configurations.
+CONFIGS = ("p", "abs", "ns", "p-z", "ns-z", "abs-z")
+#: ``overall``: one network chosen on val All; ``per-set``: one per set, chosen on that set.
+SELECTIONS = ("overall", "per-set")
+#: Benchmarks whose camera moves along z only.
+Z_ONLY_BENCHMARKS = ("odms-detection",)
+#: Camera motion is z-only when no x or y offset exceeds this fraction of the largest z offset.
+Z_ONLY_RATIO = 0.1
+#: Checkpoints larger than this are refused before they are read (the network is 2.4 MB).
+MAX_WEIGHTS_BYTES = 64 << 20
+DEFAULT_WEIGHTS = WEIGHTS_DIR / "dbox_p.pt"
+_SHA256 = re.compile(r"[0-9a-f]{64}")
 
 
-def load_model(weights: str | os.PathLike[str] | None = None) -> tuple[DBox, str]:
+def weights_path(config: str, set_name: str | None = None) -> Path:
+    """Where the shipped checkpoint of ``config`` lives (``set_name``: its per-set one)."""
+    return WEIGHTS_DIR / (f"dbox_{config}.pt" if set_name is None else f"dbox_{config}.{set_name}.pt")
+
+
+def per_set_path(weights: str | os.PathLike[str], set_name: str) -> Path:
+    """The per-set checkpoint beside ``weights``: ``dbox_<config>.<set>.pt``."""
+    path = Path(weights)
+    return path.with_name(f"{path.stem}.{set_name}{path.suffix}")
+
+
+def shipped() -> dict[str, list[str]]:
+    """The shipped configurations and, for each, the sets it has per-set checkpoints for."""
+    found: dict[str, list[str]] = {}
+    for config in CONFIGS:
+        if weights_path(config).is_file():
+            prefix = f"dbox_{config}."
+            found[config] = sorted(
+                p.name[len(prefix) : -len(".pt")]
+                for p in WEIGHTS_DIR.glob(f"{prefix}*.pt")
+                if "." not in p.name[len(prefix) : -len(".pt")]
+            )
+    return found
+
+
+def is_z_only(examples: Examples) -> bool:
+    """Whether the camera moves along z only (x, y offsets at most 10 % of the z offsets)."""
+    if len(examples) == 0:
+        return False
+    cam = np.asarray(examples.camera, dtype=np.float64)
+    z = float(np.abs(cam[..., 2]).max())
+    return z > 0 and float(np.abs(cam[..., :2]).max()) <= Z_ONLY_RATIO * z
+
+
+def default_config(examples: Examples) -> str:
+    """``p-z`` for a z-only benchmark or z-only camera motion, else ``p``.
+
+    The benchmark named in ``examples.attrs["benchmark"]`` decides when it is known
+    (``odms-detection`` is z-only, ``odmd-*`` is not); other data are judged by their
+    camera motion (:func:`is_z_only`).
+    """
+    benchmark = examples.attrs.get("benchmark")
+    if benchmark in Z_ONLY_BENCHMARKS:
+        return "p-z"
+    if isinstance(benchmark, str) and benchmark.startswith("odmd"):
+        return "p"
+    return "p-z" if is_z_only(examples) else "p"
+
+
+def _sha256(data: bytes) -> str:
+    return hashlib.sha256(data).hexdigest()
+
+
+def _recorded_sha256(record: Path) -> str:
+    try:
+        value = json.loads(record.read_text(encoding="utf-8")).get("weights_sha256")
+    except (OSError, ValueError, AttributeError) as e:
+        raise DataError(f"cannot read the weights record {record}: {type(e).__name__}: {e}") from None
+    if not isinstance(value, str) or not _SHA256.fullmatch(value):
+        raise DataError(f"the weights record {record} has no valid weights_sha256 (64 hex digits)")
+    return value
+
+
+def verify_weights(
+    path: str | os.PathLike[str], weights_sha256: str | None = None, require_record: bool = False
+) -> tuple[bytes, str]:
+    """Read a checkpoint's bytes and check them against their recorded SHA-256.
+
+    Args:
+        path: the checkpoint.
+        weights_sha256: the expected hash (64 hex digits); default: the
+            ``weights_sha256`` of the JSON record beside the file (same name, ``.json``),
+            when there is one.
+        require_record: refuse a file with neither (for the shipped weights).
+
+    Returns:
+        (the file's bytes, their SHA-256).
+
+    Raises:
+        DataError: the file is missing, too large or unreadable, has no record when one
+            is required, or its hash differs from the record's.
+    """
+    path = Path(path)
+    record = path.with_suffix(".json")
+    if not path.is_file():
+        raise DataError(f"DBox weights not found: {path}")
+    if path.stat().st_size > MAX_WEIGHTS_BYTES:
+        raise DataError(
+            f"{path} is {path.stat().st_size} bytes, more than a DBox checkpoint "
+            f"({MAX_WEIGHTS_BYTES >> 20} MB at most): not read"
+        )
+    try:
+        data = path.read_bytes()
+    except OSError as e:
+        raise DataError(f"cannot read DBox weights {path}: {e.strerror or e}") from None
+    actual = _sha256(data)
+    source = "the given weights_sha256"
+    if weights_sha256 is not None:
+        expected = weights_sha256.lower()
+        if not _SHA256.fullmatch(expected):
+            raise UsageError(f"weights_sha256 must be 64 hex digits, got {weights_sha256!r}")
+    elif record.is_file():
+        expected, source = _recorded_sha256(record), f"its record {record}"
+    elif require_record:
+        raise DataError(
+            f"the shipped weights {path} have no record {record.name} beside them to check "
+            "them against; reinstall odmd-bench"
+        )
+    else:
+        return data, actual
+    if actual != expected:
+        fix = (
+            "reinstall odmd-bench to restore the shipped weights"
+            if path.parent == WEIGHTS_DIR
+            else "restore the file (or retrain it with odmd-bench train-dbox); if it was changed "
+            "on purpose, record its new hash"
+        )
+        raise DataError(
+            f"DBox weights {path} do not match {source}",
+            [f"expected SHA-256 {expected}", f"actual SHA-256   {actual}", f"fix: {fix}"],
+        )
+    return data, actual
+
+
+def load_model(
+    weights: str | os.PathLike[str] | None = None,
+    weights_sha256: str | None = None,
+    require_record: bool = False,
+) -> tuple[DBox, str]:
     """The DBox network with the given weights, and its input formulation.
 
     Args:
         weights: a checkpoint file in the original key layout; default: the shipped
-            ``dbox_p.pt``. The formulation is ``rel`` unless a JSON record beside
-            the file (same name, ``.json``) names another (``abs`` for ``--config abs``).
+            ``dbox_p.pt`` (whose record is then required). The formulation is ``rel``
+            unless a JSON record beside the file (same name, ``.json``) names another.
+        weights_sha256: expected hash of the file (see :func:`verify_weights`).
+        require_record: refuse a file without a record to check it against.
 
     Returns:
         (model in eval mode on the CPU, formulation).
 
     Raises:
-        DataError: the file is missing, is not a torch checkpoint, or its keys or
-            shapes are not the original layout (every difference is named).
+        DataError: the file is missing, fails its hash check, is not a torch checkpoint,
+            or its keys or shapes are not the original layout (every difference is named).
     """
+    model, form, _ = _load(weights, weights_sha256, require_record or weights is None)
+    return model, form
+
+
+def _load(
+    weights: str | os.PathLike[str] | None, weights_sha256: str | None, require_record: bool
+) -> tuple[DBox, str, str]:
     import torch
     from odmd_bench_baselines.dbox.model import DBox
 
     path = Path(weights) if weights is not None else DEFAULT_WEIGHTS
-    if not path.is_file():
-        raise DataError(f"DBox weights not found: {path}")
+    data, sha = verify_weights(path, weights_sha256, require_record)
     try:
-        state = torch.load(path, map_location="cpu", weights_only=True)
+        state = torch.load(io.BytesIO(data), map_location="cpu", weights_only=True)
     except Exception as e:  # torch/pickle raise many kinds for a damaged or foreign file
         raise DataError(
             f"{path} is not a loadable DBox checkpoint (read with weights_only=True): "
@@ -63,7 +222,7 @@ def load_model(weights: str | os.PathLike[str] | None = None) -> tuple[DBox, str
     model = DBox()
     model.load_state_dict({k: v.to(torch.float32) for k, v in state.items()})
     model.eval()
-    return model, _formulation(path)
+    return model, _formulation(path), sha
 
 
 def check_state_dict(state: Any, where: str = "checkpoint") -> None:
@@ -112,11 +271,78 @@ def _formulation(path: Path) -> str:
     return "rel"
 
 
+def resolve_weights(
+    examples: Examples,
+    config: str | None = None,
+    weights: str | os.PathLike[str] | None = None,
+    selection: str = "overall",
+) -> tuple[Path, dict[str, str]]:
+    """The checkpoint to run on ``examples`` and how it was chosen.
+
+    Args:
+        examples: one set (``selection="per-set"`` reads its name from ``attrs["set"]``).
+        config: a shipped configuration (default: :func:`default_config`); not with
+            ``weights``.
+        weights: a checkpoint file of one's own.
+        selection: ``overall`` or ``per-set`` (with ``weights``: the file's per-set
+            sibling ``<stem>.<set>.pt``, as ``train-dbox`` writes them).
+
+    Returns:
+        (checkpoint path, provenance: ``config``, ``selection``, ``weights``).
+
+    Raises:
+        UsageError: an unknown configuration or selection, or both ``config`` and
+            ``weights``.
+        DataError: no shipped weights for the configuration (the shipped ones are
+            listed), or no per-set checkpoint for the set.
+    """
+    if selection not in SELECTIONS:
+        raise UsageError(f"unknown DBox selection {selection!r}; expected one of {', '.join(SELECTIONS)}")
+    if config is not None and weights is not None:
+        raise UsageError("give DBox either a configuration or a weights file, not both")
+    if config is not None and config not in CONFIGS:
+        raise UsageError(f"unknown DBox configuration {config!r}; expected one of {', '.join(CONFIGS)}")
+    set_name = examples.attrs.get("set")
+    if selection == "per-set" and not isinstance(set_name, str):
+        raise UsageError(
+            "per-set selection needs to know which set the examples are "
+            "(examples.attrs['set']); load them with odmd_bench.load_split"
+        )
+    if weights is not None:
+        path = Path(weights)
+        if selection == "per-set":
+            path = per_set_path(path, str(set_name))
+            if not path.is_file():
+                raise DataError(f"no per-set checkpoint for set {set_name!r} beside {weights}: {path}")
+        return path, {"config": "custom", "selection": selection, "weights": str(path)}
+    name = config if config is not None else default_config(examples)
+    available = shipped()
+    if name not in available:
+        listed = ", ".join(available) or "none"
+        raise DataError(
+            f"no shipped weights for DBox configuration {name!r} (shipped: {listed})",
+            [f"train them with: odmd-bench train-dbox --config {name} --out DIR, then pass --weights"],
+        )
+    path = weights_path(name)
+    if selection == "per-set":
+        if str(set_name) not in available[name]:
+            sets = ", ".join(available[name]) or "none"
+            raise DataError(
+                f"DBox configuration {name!r} has no per-set checkpoint for set {set_name!r} "
+                f"(per-set checkpoints: {sets}); use selection 'overall'"
+            )
+        path = weights_path(name, str(set_name))
+    return path, {"config": name, "selection": selection, "weights": path.name}
+
+
 def predict(
     examples: Examples,
     weights: str | os.PathLike[str] | None = None,
     formulation: str | None = None,
     chunk: int = 4096,
+    config: str | None = None,
+    selection: str = "overall",
+    weights_sha256: str | None = None,
 ) -> np.ndarray:
     """DBox depth estimates for ``examples``.
 
@@ -124,39 +350,105 @@ def predict(
     runs on the CPU in batches of ``chunk`` without gradients.
 
     Args:
-        examples: N examples of 10 observations.
-        weights: checkpoint file (default: the shipped ``dbox_p.pt``).
+        examples: N examples of :data:`OBSERVATIONS` observations.
+        weights: a checkpoint file (instead of ``config``).
         formulation: ``rel`` or ``abs``; default: from the weights' JSON record,
             else ``rel`` (the original release's checkpoint is f_Rel).
         chunk: examples per forward pass.
+        config: shipped configuration (default: :func:`default_config`).
+        selection: ``overall`` (one network) or ``per-set`` (the set's own checkpoint).
+        weights_sha256: expected SHA-256 of ``weights``.
 
     Returns:
         (N,) float64 depth in metres.
     """
-    import torch
-    from odmd_bench_baselines.dbox.model import N_OBS, predict_depth
-
-    if examples.n_obs != N_OBS:
-        raise DataError(f"DBox takes {N_OBS} observations per example, got {examples.n_obs}")
-    model, form = load_model(weights)
-    if len(examples) == 0:
-        return np.zeros(0, dtype=np.float64)
-    return predict_depth(model, examples, formulation or form, torch.device("cpu"), chunk)
+    return predict_report(
+        examples,
+        weights,
+        formulation,
+        chunk,
+        config=config,
+        selection=selection,
+        weights_sha256=weights_sha256,
+    )[0]
 
 
 def predict_report(
     examples: Examples,
     weights: str | os.PathLike[str] | None = None,
     formulation: str | None = None,
-) -> tuple[np.ndarray, dict[str, int]]:
-    """:func:`predict`, and how many examples had no detection at all.
+    chunk: int = 4096,
+    config: str | None = None,
+    selection: str = "overall",
+    weights_sha256: str | None = None,
+) -> tuple[np.ndarray, dict[str, int | str]]:
+    """:func:`predict`, how many examples had no detection at all, and which weights ran.
 
     Such an example has nothing to fill its boxes from; the network sees the boxes as
     stored (zeros in the original files) and its estimate means little. It is still
     estimated, as the original release did, and counted here as ``no_detection``.
+
+    Returns:
+        (depths, report): ``n``, ``no_detection`` (counts), and, as :func:`provenance`
+        gives them, ``config``, ``selection``, ``weights`` and the verified
+        ``weights_sha256`` (the ``baseline`` command prints them).
     """
-    depths = predict(examples, weights=weights, formulation=formulation)
-    return depths, {"n": len(examples), "no_detection": int((~examples.detected.any(axis=1)).sum())}
+    import torch
+    from odmd_bench_baselines.dbox.model import N_OBS, predict_depth
+
+    if examples.n_obs != N_OBS:
+        raise DataError(f"DBox takes {N_OBS} observations per example, got {examples.n_obs}")
+    path, described = resolve_weights(examples, config, weights, selection)
+    model, form, sha = _load(path, weights_sha256, require_record=weights is None)
+    if len(examples) == 0:
+        depths = np.zeros(0, dtype=np.float64)
+    else:
+        depths = predict_depth(model, examples, formulation or form, torch.device("cpu"), chunk)
+    report: dict[str, int | str] = {
+        "n": len(examples),
+        "no_detection": int((~examples.detected.any(axis=1)).sum()),
+    }
+    return depths, {**report, **described, "weights_sha256": sha}
 
 
-__all__ = ["DEFAULT_WEIGHTS", "SHIPPED", "check_state_dict", "load_model", "predict", "predict_report"]
+def provenance(
+    examples: Examples,
+    weights: str | os.PathLike[str] | None = None,
+    config: str | None = None,
+    selection: str = "overall",
+    weights_sha256: str | None = None,
+) -> dict[str, str]:
+    """Which checkpoint :func:`predict` runs on ``examples`` with these options, verified.
+
+    Returns:
+        ``config`` (``custom`` for one's own file), ``selection``, ``weights`` (the file
+        name of a shipped checkpoint, the path of one's own) and ``weights_sha256`` (the
+        hash checked, to print into the predictions' provenance).
+
+    Raises:
+        UsageError, DataError: as :func:`predict` (unknown names, no such weights, a
+            hash that does not match its record).
+    """
+    path, described = resolve_weights(examples, config, weights, selection)
+    _, sha = verify_weights(path, weights_sha256, require_record=weights is None)
+    return {**described, "weights_sha256": sha}
+
+
+__all__ = [
+    "CONFIGS",
+    "DEFAULT_WEIGHTS",
+    "OBSERVATIONS",
+    "SELECTIONS",
+    "check_state_dict",
+    "default_config",
+    "is_z_only",
+    "load_model",
+    "per_set_path",
+    "predict",
+    "predict_report",
+    "provenance",
+    "resolve_weights",
+    "shipped",
+    "verify_weights",
+    "weights_path",
+]

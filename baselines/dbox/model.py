@@ -17,21 +17,24 @@ then ``d = h``; six times ``d = relu(linears.k([d, X]))`` with ``X`` the whole i
 flattened observation by observation (70 numbers); the output is ``linears.6(d)``.
 
 The implementation computes exactly that, with a hand-written backward pass and
-every matrix product in one call of the fastest float32 kernel torch has on the CPU
-(see "the fast implementation" below): a training step is 2.5-2.9 times, inference
-3.1-4.1 times faster than the original release's formulation on a 2-core AMD EPYC
-(``benchmarks/bench_dbox.py``). :func:`reference_forward` is the original's
-straightforward per-gate version, kept for tests and benchmarks and used for an input
-that needs a gradient itself.
+every matrix product in one call of a float32 kernel chosen per process (oneDNN's or
+plain torch products, whichever a timed probe finds faster here: see
+:func:`use_onednn`). Its speed against the original release's formulation, by CPU, is
+in ``docs/dbox.md`` and ``benchmarks/results/``. :func:`reference_forward` is the
+original's straightforward per-gate version, kept for tests and benchmarks and used for
+an input that needs a gradient itself.
 
 This module imports torch; ``import odmd_bench`` never does.
 """
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import math
 import os
+import time
+from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Any
 
@@ -39,8 +42,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from odmd_bench.data.examples import Examples, fill_missing
-from odmd_bench.errors import DataError
+from odmd_bench import DataError, Examples, UsageError, fill_missing
 
 #: Numbers per observation: x, y, w, h, dcx, dcy, dcz.
 N_FEATURES = 7
@@ -118,13 +120,14 @@ class DBox(nn.Module):
 # --- the fast implementation -------------------------------------------------------------
 #
 # Forward and backward are written out by hand (one autograd node for the whole network)
-# so that every matrix product is one call of the fastest kernel at hand and nothing is
-# computed twice. On a float32 CPU tensor that kernel is oneDNN's matmul
-# (``mkldnn._linear_pointwise``, which PyTorch's own compiler emits): on the project's AMD
-# EPYC machines it runs these products at about 200 GFLOP/s a core against 96 for MKL's
-# SGEMM behind ``torch.addmm`` (the rate of MKL's AVX2 code; oneDNN uses AVX-512), and it
-# applies the gate sigmoid inside the product. Elsewhere (float64, CUDA, builds without
-# oneDNN) the same code runs on plain torch products.
+# so that every matrix product is one call and nothing is computed twice. On a float32 CPU
+# tensor the products run either on oneDNN's matmul (``mkldnn._linear_pointwise``, which
+# PyTorch's own compiler emits; it applies the gate sigmoid inside the product) or on
+# plain torch products (MKL's SGEMM behind ``torch.addmm``). Which is faster depends on
+# the CPU: oneDNN was faster on one AMD EPYC, slower on another and on an Intel Xeon
+# (AVX-512, AMX): so :func:`use_onednn` decides once per process by timing both
+# (``ODMD_BENCH_ONEDNN`` overrides). Elsewhere (float64, CUDA, builds without oneDNN)
+# the code runs on plain torch products.
 #
 # The LSTM runs feature-major, one contiguous (features, B) block per observation:
 #
@@ -144,10 +147,16 @@ _CT = _K  # rows of c_t
 _Q = _CT + HIDDEN  # 392
 
 
+#: Values of ``ODMD_BENCH_ONEDNN``: ``auto`` (default: a timed probe decides), ``1`` (always
+#: oneDNN where available), ``0`` (plain torch products).
+KERNEL_SETTINGS = ("auto", "1", "0")
+_forced: str | None = None  # set by kernels()
+
+
 @functools.cache
 def onednn_available() -> bool:
-    """Whether oneDNN's fp32 matmul can be used (``ODMD_BENCH_ONEDNN=0`` turns it off)."""
-    if os.environ.get("ODMD_BENCH_ONEDNN", "1") == "0" or not torch.backends.mkldnn.is_available():
+    """Whether oneDNN's fp32 matmul works in this torch build."""
+    if not torch.backends.mkldnn.is_available():
         return False
     try:
         a = torch.arange(6.0).view(2, 3)
@@ -158,16 +167,84 @@ def onednn_available() -> bool:
     return bool(torch.equal(got, a @ w.t()))
 
 
+def use_onednn(train: bool) -> bool:
+    """Whether float32 CPU products run on oneDNN (else plain torch products).
+
+    The rule: ``ODMD_BENCH_ONEDNN=0`` never, ``1`` always (where oneDNN works); unset or
+    ``auto``: once per process, thread count and kind of pass (``train``: forward and
+    backward of a batch of 512; else a forward of 1,000 examples without gradients), a
+    probe times both kernels (interleaved, best of three, about 0.1-0.3 s) and keeps
+    oneDNN only if it is faster. Both give the same numbers to float32 rounding; a run
+    that must repeat bit for bit should fix the setting.
+
+    Raises:
+        UsageError: ``ODMD_BENCH_ONEDNN`` has another value.
+    """
+    setting = _forced or os.environ.get("ODMD_BENCH_ONEDNN", "auto") or "auto"
+    if setting not in KERNEL_SETTINGS:
+        raise UsageError(f"ODMD_BENCH_ONEDNN={setting!r}: expected one of {', '.join(KERNEL_SETTINGS)}")
+    if setting == "0" or not onednn_available():
+        return False
+    return setting == "1" or _probe(train, torch.get_num_threads())
+
+
+@contextlib.contextmanager
+def kernels(setting: str) -> Iterator[None]:
+    """Run the block with ``ODMD_BENCH_ONEDNN`` set to ``setting`` (for tests and benchmarks)."""
+    global _forced
+    if setting not in KERNEL_SETTINGS:
+        raise UsageError(f"unknown kernel setting {setting!r}; expected one of {', '.join(KERNEL_SETTINGS)}")
+    before, _forced = _forced, setting
+    try:
+        yield
+    finally:
+        _forced = before
+
+
+@functools.cache
+def _probe(train: bool, threads: int) -> bool:
+    """Whether oneDNN runs a DBox pass faster than plain products here (see :func:`use_onednn`)."""
+    del threads  # part of the cache key only
+    gen = torch.Generator().manual_seed(0)
+    model = DBox(generator=gen)
+    packed = _Packed(*(t.detach() for t in (model.W, model.U, model.bias, model.V, *model.fc_parameters())))
+    x = torch.rand(512 if train else 1000, N_OBS, N_FEATURES, generator=gen)
+    grad = torch.ones(x.shape[0])
+
+    def run(fast: bool) -> float:
+        t0 = time.perf_counter()
+        with torch.no_grad():
+            out, saved = _forward(x, packed, keep=train, fast=fast)
+            if train:
+                _backward(grad, saved, packed, fast=fast)
+        assert out.shape == grad.shape
+        return time.perf_counter() - t0
+
+    times: dict[bool, list[float]] = {True: [], False: []}
+    for _ in range(4):  # the first round warms both up and is not counted
+        for fast in (True, False):
+            times[fast].append(run(fast))
+    return min(times[True][1:]) < min(times[False][1:])
+
+
+def _fast(x: torch.Tensor, train: bool) -> bool:
+    return x.device.type == "cpu" and x.dtype == torch.float32 and use_onednn(train)
+
+
 def _linear(
     x: torch.Tensor,
     w: torch.Tensor,
     bias: torch.Tensor | None = None,
     add: torch.Tensor | None = None,
     act: str = "none",
+    fast: bool = False,
 ) -> torch.Tensor:
-    """``act(x @ w.T + bias + add)``; x (M, K), w (N, K), bias (N,), add (M, N);
-    ``act`` is ``none``, ``relu`` or ``sigmoid`` (not with ``add``)."""
-    if x.device.type == "cpu" and x.dtype == torch.float32 and onednn_available():
+    """``act(x @ w.T + bias + add)``: one product with its epilogue.
+
+    x (M, K), w (N, K), bias (N,), add (M, N); ``act`` is ``none``, ``relu`` or ``sigmoid`` (not with ``add``); ``fast``: on
+    oneDNN's kernel (a float32 CPU tensor, oneDNN available).
+    """
+    if fast:
         # oneDNN reads a row-major block or a whole transposed matrix in place, but takes
         # its reference loop (about 1000x slower) for a transposed block: copy that one.
         x, w = (t if t.stride(-1) == 1 or t.t().is_contiguous() else t.contiguous() for t in (x, w))
@@ -205,8 +282,15 @@ class _Packed:
         self.fc_b = list(fc[1::2])
 
 
-def _forward(x: torch.Tensor, pk: _Packed, keep: bool) -> tuple[torch.Tensor, dict[str, Any]]:
-    """The network's output (B,) and, if ``keep``, what the backward pass needs."""
+def _forward(
+    x: torch.Tensor, pk: _Packed, keep: bool, fast: bool | None = None
+) -> tuple[torch.Tensor, dict[str, Any]]:
+    """The network's output (B,) and, if ``keep``, what the backward pass needs.
+
+    ``fast``: run the products on oneDNN (default: :func:`use_onednn` decides).
+    """
+    if fast is None:
+        fast = _fast(x, train=keep)
     b, n, nf = x.shape
     if n < 1:
         raise DataError("DBox needs at least one observation")
@@ -227,12 +311,12 @@ def _forward(x: torch.Tensor, pk: _Packed, keep: bool) -> tuple[torch.Tensor, di
             qt[_X0:_ONE] = x[:, t].t()
             if t:
                 qt[_C0:_H0] = qt[_CT:]
-        ifg = _linear(pk.m1_fwd, qt[:_K].t(), act="sigmoid")
+        ifg = _linear(pk.m1_fwd, qt[:_K].t(), act="sigmoid", fast=fast)
         i, f, g = ifg[:hs], ifg[hs : 2 * hs], _tanh_from_sigmoid_(ifg[2 * hs :])
         c = torch.mul(i, g, out=qt[_CT:])
         if t:
             c.addcmul_(f, qt[_C0:_H0])
-        o = _linear(pk.m2, qt[_H0:].t(), act="sigmoid")
+        o = _linear(pk.m2, qt[_H0:].t(), act="sigmoid", fast=fast)
         th = _tanh_from_sigmoid_(
             torch.sigmoid_(c.mul(2.0) if th_buf is None else torch.mul(c, 2.0, out=th_buf))
         )
@@ -258,26 +342,30 @@ def _forward(x: torch.Tensor, pk: _Packed, keep: bool) -> tuple[torch.Tensor, di
         else:
             inp = fc_in[:, FC_WIDTH - width :]
             inp[:, :width] = d
-        d = _linear(inp, pk.fc_w[k], pk.fc_b[k], act="relu")
-    out = _linear(d, pk.fc_w[N_FC], pk.fc_b[N_FC]).view(b)
+        d = _linear(inp, pk.fc_w[k], pk.fc_b[k], act="relu", fast=fast)
+    out = _linear(d, pk.fc_w[N_FC], pk.fc_b[N_FC], fast=fast).view(b)
     saved = {"q": q, "gates": gates, "ins": ins, "last": d} if keep else {}
     return out, saved
 
 
-def _backward(grad: torch.Tensor, saved: dict[str, Any], pk: _Packed) -> list[torch.Tensor]:
+def _backward(
+    grad: torch.Tensor, saved: dict[str, Any], pk: _Packed, fast: bool | None = None
+) -> list[torch.Tensor]:
     """Gradients of W, U, bias, V, linears.0.weight ... linears.6.bias from d loss / d out (B,)."""
     q, gates, ins, last = saved["q"], saved["gates"], saved["ins"], saved["last"]
+    if fast is None:
+        fast = _fast(q, train=True)
     n, _, b = q.shape
     hs = HIDDEN
     # the fully connected head, row-major as the original
     g_out = grad.reshape(b, 1)
-    fc_grads = [_linear(g_out.t(), last.t()), g_out.sum(0)]  # linears.6
+    fc_grads = [_linear(g_out.t(), last.t(), fast=fast), g_out.sum(0)]  # linears.6
     dd = g_out * pk.fc_w[N_FC]  # (B, 256)
     for k in reversed(range(N_FC)):
         relu_out = last if k == N_FC - 1 else ins[k + 1][:, :FC_WIDTH]
         dz = dd.mul_(relu_out > 0)
-        fc_grads[:0] = [_linear(dz.t(), ins[k].t()), dz.sum(0)]
-        dd = _linear(dz, pk.fc_w[k][:, : ins[k].shape[1] - N_FEATURES * n].t())
+        fc_grads[:0] = [_linear(dz.t(), ins[k].t(), fast=fast), dz.sum(0)]
+        dd = _linear(dz, pk.fc_w[k][:, : ins[k].shape[1] - N_FEATURES * n].t(), fast=fast)
     # the LSTM, backwards through the observations
     dh = dd.t().contiguous()  # (128, B)
     dc: torch.Tensor | None = None  # d loss / d c_t through step t + 1
@@ -288,7 +376,7 @@ def _backward(grad: torch.Tensor, saved: dict[str, Any], pk: _Packed) -> list[to
         qt, (ifg, o, th) = q[t], gates[t]
         i, f, g = ifg[:hs], ifg[hs : 2 * hs], ifg[2 * hs :]
         dz_o = (dh * th).mul_(o - o * o)  # o = sigmoid(z_o), h = o tanh(c_t)
-        d_q2 = _linear(m2t, dz_o.t())  # (264, B): h_(t-1); x_t; 1; c_t
+        d_q2 = _linear(m2t, dz_o.t(), fast=fast)  # (264, B): h_(t-1); x_t; 1; c_t
         dct = (dh * o).mul_(1.0 - th * th).add_(d_q2[_CT - _H0 :])
         if dc is not None:
             dct.add_(dc)
@@ -296,10 +384,10 @@ def _backward(grad: torch.Tensor, saved: dict[str, Any], pk: _Packed) -> list[to
         torch.mul(dct * g, i - i * i, out=dz[:hs])
         torch.mul(dct * qt[_C0:_H0], f - f * f, out=dz[hs : 2 * hs])
         torch.mul(dct * i, 1.0 - g * g, out=dz[2 * hs :])
-        g_m1 = _linear(dz, qt[:_K], add=g_m1)  # (384, 264)
-        g_m2 = _linear(dz_o, qt[_H0:], add=g_m2)  # (128, 264)
+        g_m1 = _linear(dz, qt[:_K], add=g_m1, fast=fast)  # (384, 264)
+        g_m2 = _linear(dz_o, qt[_H0:], add=g_m2, fast=fast)  # (128, 264)
         if t:
-            d_q1 = _linear(m1t, dz.t())  # (264, B): c_(t-1); h_(t-1); x_t; 1
+            d_q1 = _linear(m1t, dz.t(), fast=fast)  # (264, B): c_(t-1); h_(t-1); x_t; 1
             dc = dct.mul_(f).add_(d_q1[_C0:_H0])
             dh = d_q1[_H0:_X0].add_(d_q2[: _X0 - _H0])
     if g_m1 is None or g_m2 is None:
@@ -319,7 +407,8 @@ class _DBoxFunction(torch.autograd.Function):
     @staticmethod
     def forward(ctx: Any, x: torch.Tensor, *params: torch.Tensor) -> torch.Tensor:
         packed = _Packed(*params)
-        out, saved = _forward(x, packed, keep=True)
+        ctx.fast = _fast(x, train=True)
+        out, saved = _forward(x, packed, keep=True, fast=ctx.fast)
         ctx.saved = saved
         ctx.packed = packed
         return out
@@ -327,7 +416,7 @@ class _DBoxFunction(torch.autograd.Function):
     @staticmethod
     @torch.autograd.function.once_differentiable
     def backward(ctx: Any, grad: torch.Tensor) -> tuple[torch.Tensor | None, ...]:
-        grads = _backward(grad, ctx.saved, ctx.packed)
+        grads = _backward(grad, ctx.saved, ctx.packed, fast=ctx.fast)
         del ctx.saved, ctx.packed
         return (None, *grads)
 

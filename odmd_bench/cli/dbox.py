@@ -8,18 +8,18 @@ from pathlib import Path
 
 import click
 
-from odmd_bench.cli.data import data_dir_option
+from odmd_bench.cli.options import data_dir_option
 
 
 @click.command(name="train-dbox")
 @click.option(
     "--config",
     "config",
-    type=click.Choice(["p", "ns", "abs", "p-z"]),
+    type=click.Choice(["p", "ns", "abs", "p-z", "ns-z", "abs-z"]),
     default="p",
     show_default=True,
     help="p: perturbations, f_Rel (the paper's best); ns: no perturbation; abs: f_Abs; "
-    "p-z: z-only motion (ODMS preset).",
+    "p-z, ns-z, abs-z: the same with z-only motion (ODMS preset).",
 )
 @click.option(
     "--steps", type=click.IntRange(min=1), default=40_000, show_default=True, help="Training steps."

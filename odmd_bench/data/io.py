@@ -20,13 +20,12 @@ from typing import Any
 
 import numpy as np
 
-from odmd_bench.data.atomic import atomic_path, atomic_write, is_os_failure, os_cause, storage_error
+from odmd_bench.data.atomic import atomic_path, is_os_failure, os_cause, storage_error
 from odmd_bench.data.examples import Examples
 from odmd_bench.data.hashing import (
     CORE_ARRAYS,
     attr_value,
     content_sha256,
-    file_sha256,
     group_attrs,
     meta_sha256,
     plain_value,
@@ -285,8 +284,4 @@ __all__ = [
     "read_set",
     "set_names",
     "write_sets",
-    # Importable from here as before the split; their homes are data.atomic and data.hashing.
-    "atomic_path",
-    "atomic_write",
-    "file_sha256",
 ]

@@ -88,27 +88,33 @@ def load_board_data(
     data_dir: str | os.PathLike[str] | None = None,
     original: str | os.PathLike[str] | None = None,
 ) -> dict[str, Examples]:
-    """The sets of a board.
+    """The sets of a board, built or rebuilt where they are missing or stale.
 
-    A generated benchmark is generated when missing; an imported one is imported from
-    ``original`` (the original release's folder) when missing and ``original`` is given.
+    A generated benchmark is (re)generated where its file is missing or not right
+    (:func:`~odmd_bench.data.store.ensure_generated` reuses a right file); an imported
+    one is imported from ``original`` (the original release's folder), when given,
+    where its file is missing or cannot be loaded as it is (an older file format, a
+    damaged file). What is loaded is always verified.
     """
-    from odmd_bench.data.store import load_split
+    from odmd_bench.data.importer import import_release
+    from odmd_bench.data.store import ensure_generated, load_split
 
     b = get_benchmark(benchmark)
-    if not b.generated and original is not None and not set_file(benchmark, split, data_dir).exists():
-        from odmd_bench.data.importer import import_release
-
+    if b.generated:
+        ensure_generated(benchmark, (split,), data_dir)
+        return load_split(split, benchmark, data_dir)
+    if original is not None and not set_file(benchmark, split, data_dir).exists():
         import_release(original, data_dir, benchmark=benchmark)
     try:
         return load_split(split, benchmark, data_dir)
     except DataError as e:
-        if b.generated or original is not None:
-            raise
-        raise DataError(
-            e.message + " (or give the leaderboard command --original PATH, or set ODMD_ORIGINAL)",
-            e.problems,
-        ) from None
+        if original is None:
+            raise DataError(
+                e.message + " (or give the leaderboard command --original PATH, or set ODMD_ORIGINAL)",
+                e.problems,
+            ) from None
+    import_release(original, data_dir, benchmark=benchmark)  # rebuilds what could not be loaded
+    return load_split(split, benchmark, data_dir)
 
 
 def score_predictions(data: bytes, entry: Entry, examples: Mapping[str, Examples]) -> EvaluationResult:
