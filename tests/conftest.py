@@ -7,7 +7,9 @@ so their absence there is a broken set-up, never a reason to pass.
 
 from __future__ import annotations
 
+import json
 import os
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -58,3 +60,31 @@ def _isolated_data_dir(tmp_path_factory: pytest.TempPathFactory, monkeypatch: py
     """Never let a test read or write the user's real data folder by accident."""
     if "ODMD_BENCH_DATA" not in os.environ:
         monkeypatch.setenv("ODMD_BENCH_DATA", str(tmp_path_factory.getbasetemp() / "default-data"))
+
+
+def _baseline_dbox_scores(
+    data_dir: Path, out: Path, benchmark: str, split: str, *weights: str
+) -> dict[str, float]:
+    """``baseline dbox`` + ``evaluate --format json``, as a user runs them: mean % error per set and All."""
+    from click.testing import CliRunner
+
+    from odmd_bench.cli.main import cli
+
+    preds = out / "dbox.csv"
+    common = ["--benchmark", benchmark, "--data-dir", str(data_dir)]
+    run = CliRunner().invoke(cli, ["baseline", "dbox", "--split", split, "-o", str(preds), *weights, *common])
+    assert run.exit_code == 0, run.output
+    scored = CliRunner().invoke(cli, ["evaluate", str(preds), "--format", "json", *common])
+    assert scored.exit_code == 0, scored.output
+    result = json.loads(scored.stdout)
+    means = {k: v["percent_error"]["mean"] for k, v in result["sets"].items()}
+    return {**means, "all": result["all"]["percent_error_mean"]}
+
+
+DboxScores = Callable[..., dict[str, float]]
+
+
+@pytest.fixture(scope="session")
+def dbox_scores() -> DboxScores:
+    """``dbox_scores(data_dir, out, benchmark, split, *weights)``: ``baseline dbox`` + ``evaluate``."""
+    return _baseline_dbox_scores

@@ -558,41 +558,24 @@ def test_train_dbox_command(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> 
     assert resumed.exit_code == 0, resumed.output
 
 
-def _baseline_dbox_scores(
-    data_dir: Path, out: Path, benchmark: str, split: str, *weights: str
-) -> dict[str, float]:
-    """``baseline dbox`` + ``evaluate --format json``, as a user runs them: mean % error per set and All."""
-    from click.testing import CliRunner
-
-    from odmd_bench.cli.main import cli
-
-    preds = out / "dbox.csv"
-    common = ["--benchmark", benchmark, "--data-dir", str(data_dir)]
-    run = CliRunner().invoke(cli, ["baseline", "dbox", "--split", split, "-o", str(preds), *weights, *common])
-    assert run.exit_code == 0, run.output
-    scored = CliRunner().invoke(cli, ["evaluate", str(preds), "--format", "json", *common])
-    assert scored.exit_code == 0, scored.output
-    result = json.loads(scored.stdout)
-    means = {k: v["percent_error"]["mean"] for k, v in result["sets"].items()}
-    return {**means, "all": result["all"]["percent_error_mean"]}
-
-
 @pytest.fixture(scope="module")
 def shipped_p_on_paper_test(
-    paper_data_dir: Path, tmp_path_factory: pytest.TempPathFactory
+    paper_data_dir: Path,
+    tmp_path_factory: pytest.TempPathFactory,
+    dbox_scores: Callable[..., dict[str, float]],
 ) -> dict[str, float]:
     """The shipped p weights (the default) on the odmd-paper test sets."""
-    return _baseline_dbox_scores(paper_data_dir, tmp_path_factory.mktemp("dbox"), "odmd-paper", "test")
+    return dbox_scores(paper_data_dir, tmp_path_factory.mktemp("dbox"), "odmd-paper", "test")
 
 
 def test_shipped_p_z_weights_give_the_odms_numbers_docs_dbox_states(
-    paper_data_dir: Path, tmp_path: Path
+    paper_data_dir: Path, tmp_path: Path, dbox_scores: Callable[..., dict[str, float]]
 ) -> None:
     """p-z on the ODMS-detection val sets (its selection sets).
 
     Run by default on that benchmark through the CLI, and its per-set selection (docs/dbox.md states both).
     """
-    scores = _baseline_dbox_scores(paper_data_dir, tmp_path, "odms-detection", "val")
+    scores = dbox_scores(paper_data_dir, tmp_path, "odms-detection", "val")
     stated = {"normal": 11.75, "perturb": 19.10, "robot": 10.00, "driving": 29.39, "all": 17.56}
     # stated to two decimals; the two kernels differ in the last bits, so not compared rounded
     assert set(scores) == set(stated) and all(abs(scores[k] - stated[k]) < 0.0051 for k in stated), scores

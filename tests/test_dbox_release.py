@@ -9,17 +9,14 @@ and skips elsewhere, like every test of the original release (``tests/conftest.p
 from __future__ import annotations
 
 import hashlib
-import json
 import os
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
 
 pytest.importorskip("torch")
 
-from click.testing import CliRunner  # noqa: E402
-
-from odmd_bench.cli.main import cli  # noqa: E402
 
 CHECKPOINT = "results/model/DBox_pretrained/DBox_pretrained_paper.pt"
 #: The paper's Table 1 row of DBox_p, and the release's stated val results.
@@ -48,17 +45,12 @@ def release_checkpoint(original_release: Path) -> Path:
 
 @pytest.mark.parametrize("split", ["test", "val"])
 def test_the_release_checkpoint_gives_the_published_numbers(
-    split: str, release_checkpoint: Path, paper_data_dir: Path, tmp_path: Path
+    split: str,
+    release_checkpoint: Path,
+    paper_data_dir: Path,
+    tmp_path: Path,
+    dbox_scores: Callable[..., dict[str, float]],
 ) -> None:
-    preds = tmp_path / f"release-{split}.csv"
-    common = ["--benchmark", "odmd-paper", "--data-dir", str(paper_data_dir)]
-    weights = ["--weights", str(release_checkpoint)]
-    run = CliRunner().invoke(cli, ["baseline", "dbox", "--split", split, "-o", str(preds), *weights, *common])
-    assert run.exit_code == 0, run.output
-    scored = CliRunner().invoke(cli, ["evaluate", str(preds), "--format", "json", *common])
-    assert scored.exit_code == 0, scored.output
-    result = json.loads(scored.stdout)
-    got = {k: v["percent_error"]["mean"] for k, v in result["sets"].items()}
-    got["all"] = result["all"]["percent_error_mean"]
+    got = dbox_scores(paper_data_dir, tmp_path, "odmd-paper", split, "--weights", str(release_checkpoint))
     far = {k: (round(got[k], 4), v) for k, v in PUBLISHED[split].items() if abs(got[k] - v) > TOLERANCE}
     assert not far, f"{split}: (measured, published) beyond {TOLERANCE}: {far}"
