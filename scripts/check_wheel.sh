@@ -7,8 +7,8 @@
 #   3. install it into a fresh venv, and from a folder outside the repository, with a data
 #      folder of its own, run generate, baseline box-ls and dbox, evaluate and import;
 #   4. install it into a second venv where torch and matplotlib cannot be imported: generate,
-#      box-ls, evaluate, compare, import and the leaderboard check run, and `baseline dbox`
-#      exits 2 naming the extra to install.
+#      box-ls, evaluate, compare, import and the leaderboard check run, and `baseline dbox`,
+#      `train-dbox` and `plot` exit 2 naming the extra to install.
 # The venvs reuse the dependencies already installed in the running Python's environment
 # (a .pth file pointing at its site-packages) and install the wheel with --no-deps: nothing
 # is downloaded. The original release ($ODMD_ORIGINAL, default ../shared/odmd-original)
@@ -171,12 +171,20 @@ if [ -n "$original" ]; then
 else
     echo "  SKIPPED leaderboard check: no original release (see above)"
 fi
-echo "  [base] odmd-bench baseline dbox (must exit 2 naming the extra)"
-set +e
-"$work/base/bin/odmd-bench" baseline dbox -o dbox-base.csv >"$work/out" 2>&1
-status=$?
-set -e
-grep -qF "pip install 'odmd-bench[dbox]'" "$work/out" && [ $status -eq 2 ] && [ ! -e dbox-base.csv ] \
-    || { cat "$work/out" >&2; fail "[base] baseline dbox exited $status, without naming the [dbox] extra"; }
-sed 's/^/    /' "$work/out"
+needs_extra() {  # needs_extra EXTRA WHAT ARGS...: the command must exit 2 naming the extra
+    local extra=$1 what=$2
+    shift 2
+    echo "  [base] odmd-bench $what (must exit 2 naming the extra)"
+    set +e
+    "$work/base/bin/odmd-bench" "$@" >"$work/out" 2>&1
+    local status=$?
+    set -e
+    grep -qF "pip install 'odmd-bench[$extra]'" "$work/out" && [ $status -eq 2 ] \
+        || { cat "$work/out" >&2; fail "[base] $what exited $status, without naming the [$extra] extra"; }
+    sed 's/^/    /' "$work/out"
+}
+needs_extra dbox "baseline dbox" baseline dbox -o dbox-base.csv
+[ ! -e dbox-base.csv ] || fail "[base] baseline dbox wrote a file"
+needs_extra dbox "train-dbox" train-dbox --steps 1 --out train-base
+needs_extra plot "plot" plot box.csv --set normal -o fig.png
 echo "check_wheel: OK ($((SECONDS - start)) s)"

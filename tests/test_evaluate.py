@@ -22,8 +22,10 @@ import odmd_bench
 from odmd_bench import Examples, OdmdError, UsageError, ValidationError, fill_missing
 from odmd_bench.data.io import write_sets
 from odmd_bench.data.registry import set_file
+from odmd_bench.evaluation.coverage import check_coverage
+from odmd_bench.evaluation.parse import parse_predictions
 from odmd_bench.evaluation.predictions import write_predictions
-from odmd_bench.evaluation.scoring import SHOWN, evaluate, read_predictions
+from odmd_bench.evaluation.scoring import SHOWN, evaluate
 
 BENCH = "odmd-paper"
 SIZES = {
@@ -399,7 +401,10 @@ def _check_never_crashes(tmp_path: Path, data: bytes) -> None:
     p = tmp_path / "h.csv"
     p.write_bytes(data)
     try:
-        preds = read_predictions(p, set_sizes=_sizes, benchmark=BENCH)
+        parsed = parse_predictions(p, benchmark=BENCH, strict=False)
+        if parsed.benchmark is None or parsed.split is None:
+            raise parsed.problems.error(parsed.name)
+        preds = check_coverage(parsed, _sizes(parsed.benchmark, parsed.split))
     except OdmdError:
         return
     for s, d in preds.depths.items():

@@ -20,11 +20,11 @@ from odmd_bench import extras, methods
 from odmd_bench.errors import UsageError
 
 ROOT = Path(__file__).resolve().parents[1]
-tomllib = pytest.importorskip("tomllib")  # Python 3.11+; the checks below need it only
 
 
 @pytest.fixture(scope="module")
 def project() -> dict:
+    tomllib = pytest.importorskip("tomllib")  # Python 3.11+; only the tests reading pyproject need it
     with open(ROOT / "pyproject.toml", "rb") as fh:
         return tomllib.load(fh)["project"]
 
@@ -56,6 +56,8 @@ def test_the_base_install_needs_neither_torch_nor_matplotlib(project: dict) -> N
 
 
 def test_mypy_targets_the_oldest_python_supported(project: dict) -> None:
+    import tomllib  # the project fixture has skipped where it is missing
+
     with open(ROOT / "pyproject.toml", "rb") as fh:
         mypy = tomllib.load(fh)["tool"]["mypy"]
     assert project["requires-python"] == f">={mypy['python_version']}"

@@ -467,22 +467,37 @@ def test_a_sigkilled_writer_leaves_a_temp_file_that_the_next_write_removes(tmp_p
 
 
 def test_only_stale_temp_files_of_the_target_are_removed(tmp_path: Path) -> None:
+    """A dead local writer's file goes; a live one's never; others' only when old."""
+    from odmd_bench.data.atomic import _host
+
     target = tmp_path / "test.h5"
     dead = subprocess.Popen([sys.executable, "-c", "pass"])
     dead.wait()
+    here = _host()
     files = {
-        "dead": tmp_path / f".test.h5.{dead.pid}.abcd1234.tmp",
-        "live": tmp_path / f".test.h5.{os.getppid()}.abcd1234.tmp",
-        "old_live": tmp_path / f".test.h5.{os.getppid()}.efgh5678.tmp",
+        "dead": tmp_path / f".test.h5.{here}-{dead.pid}.abcd1234.tmp",
+        "live": tmp_path / f".test.h5.{here}-{os.getppid()}.abcd1234.tmp",
+        "old_live": tmp_path / f".test.h5.{here}-{os.getppid()}.efgh5678.tmp",
+        "other_host_new": tmp_path / f".test.h5.elsewhere-{dead.pid}.abcd1234.tmp",
+        "other_host_old": tmp_path / f".test.h5.elsewhere-{os.getppid()}.efgh5678.tmp",
         "legacy_old": tmp_path / ".test.h5.k2j3h4g5.tmp",
         "legacy_new": tmp_path / ".test.h5.q1w2e3r4.tmp",
-        "other_target": tmp_path / f".val.h5.{dead.pid}.abcd1234.tmp",
+        "other_target": tmp_path / f".val.h5.{here}-{dead.pid}.abcd1234.tmp",
         "not_ours": tmp_path / "test.h5.tmp",
     }
     for p in files.values():
         p.write_text("x")
     old = time.time() - 2 * 3600
-    for k in ("old_live", "legacy_old"):
+    for k in ("old_live", "other_host_old", "legacy_old"):
         os.utime(files[k], (old, old))
     removed = set(clean_stale_temps(target))
-    assert removed == {files["dead"], files["old_live"], files["legacy_old"]}
+    assert removed == {files["dead"], files["other_host_old"], files["legacy_old"]}
+
+
+def test_text_is_written_as_utf8_whatever_the_locale(tmp_path: Path) -> None:
+    """atomic_write in text mode writes UTF-8 even where the locale's encoding is ASCII."""
+    out = tmp_path / "t.md"
+    code = f"from odmd_bench.data.atomic import atomic_write\nwith atomic_write({str(out)!r}, 'w') as f: f.write('\\u2265 5')"
+    env = {**os.environ, "LC_ALL": "C", "LANG": "C", "PYTHONUTF8": "0", "PYTHONCOERCECLOCALE": "0"}
+    subprocess.run([sys.executable, "-X", "utf8=0", "-c", code], env=env, check=True)
+    assert out.read_bytes() == "≥ 5".encode()

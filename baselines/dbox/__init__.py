@@ -394,10 +394,10 @@ def predict_report(
         ``weights_sha256`` (the ``baseline`` command prints them).
     """
     import torch
-    from odmd_bench_baselines.dbox.model import N_OBS, predict_depth
+    from odmd_bench_baselines.dbox.model import predict_depth
 
-    if examples.n_obs != N_OBS:
-        raise DataError(f"DBox takes {N_OBS} observations per example, got {examples.n_obs}")
+    if examples.n_obs != OBSERVATIONS:
+        raise DataError(f"DBox takes {OBSERVATIONS} observations per example, got {examples.n_obs}")
     path, described = resolve_weights(examples, config, weights, selection)
     model, form, sha = _load(path, weights_sha256, require_record=weights is None)
     if len(examples) == 0:

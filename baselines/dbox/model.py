@@ -40,6 +40,7 @@ from typing import Any
 
 import numpy as np
 import torch
+from odmd_bench_baselines.dbox import OBSERVATIONS
 from torch import nn
 
 from odmd_bench import DataError, Examples, UsageError, fill_missing
@@ -49,7 +50,7 @@ N_FEATURES = 7
 HIDDEN = 128
 FC_WIDTH = 256
 N_FC = 6
-N_OBS = 10
+N_OBS = OBSERVATIONS  # the network's observations per example (declared by the package)
 
 FORMULATIONS = ("rel", "abs")
 

@@ -2,14 +2,13 @@
 
 from __future__ import annotations
 
-import os
 import sys
 from pathlib import Path
 from typing import Any
 
 import click
 
-from odmd_bench.cli.options import data_dir_option
+from odmd_bench.cli.options import data_dir_option, same_file
 from odmd_bench.errors import UsageError
 from odmd_bench.evaluation.report import FORMATS
 
@@ -36,13 +35,6 @@ def _source(path: Path) -> tuple[Any, str | None]:
     return path, None
 
 
-def _same_file(a: Path, b: Path) -> bool:
-    try:
-        return os.path.samefile(a, b)  # symbolic and hard links alike
-    except OSError:
-        return a.resolve() == b.resolve()
-
-
 def _refuse_overwrite(outputs: dict[str, Path | None], inputs: list[Path]) -> None:
     """A report must never replace a file being scored, nor another report.
 
@@ -54,14 +46,14 @@ def _refuse_overwrite(outputs: dict[str, Path | None], inputs: list[Path]) -> No
         f"{opt} {p} is the predictions file {src} being scored; write it elsewhere"
         for opt, p in files.items()
         for src in inputs
-        if str(src) != "-" and _same_file(p, src)
+        if str(src) != "-" and same_file(p, src)
     ]
     named = list(files.items())
     problems += [
         f"{o1} and {o2} name the same file {p1}"
         for i, (o1, p1) in enumerate(named)
         for o2, p2 in named[i + 1 :]
-        if _same_file(p1, p2)
+        if same_file(p1, p2)
     ]
     if len(outputs) - len(files) > 1:
         problems.append(f"{' and '.join(outputs)} cannot both write to stdout; give one of them a file")

@@ -21,7 +21,7 @@ from typing import Any
 import click
 
 from odmd_bench import __version__
-from odmd_bench.errors import OdmdError
+from odmd_bench.errors import OdmdError, UsageError
 
 #: Exit status when stdout is closed by its reader.
 EXIT_BROKEN_PIPE = 141
@@ -51,7 +51,39 @@ def _os_error_line(e: OSError) -> str:
     return f"{where}: {cause}" if where else cause
 
 
+#: Entry-point group of commands that other packages add (``train-dbox`` is one).
+COMMAND_GROUP = "odmd_bench.commands"
+
+
+def _plugin_commands() -> dict[str, Any]:
+    """``{name: entry point}`` of the commands registered in :data:`COMMAND_GROUP`."""
+    from importlib import metadata
+
+    return {ep.name: ep for ep in metadata.entry_points(group=COMMAND_GROUP)}
+
+
 class _Group(click.Group):
+    def list_commands(self, ctx: click.Context) -> list[str]:
+        return sorted({*super().list_commands(ctx), *_plugin_commands()})
+
+    def get_command(self, ctx: click.Context, cmd_name: str) -> click.Command | None:
+        # Plug-in commands are loaded when asked for, so that no other command pays for them.
+        command = super().get_command(ctx, cmd_name)
+        if command is not None:
+            return command
+        ep = _plugin_commands().get(cmd_name)
+        if ep is None:
+            return None
+        try:
+            loaded = ep.load()
+        except ModuleNotFoundError as e:
+            from odmd_bench.extras import missing_module_error
+
+            raise missing_module_error(e, f"command {cmd_name!r} ({ep.value})") from None
+        if not isinstance(loaded, click.Command):
+            raise UsageError(f"command {cmd_name!r} ({ep.value}) is not a click command")
+        return loaded
+
     def resolve_command(self, ctx: click.Context, args: list[str]) -> Any:
         # Remember the command line, to answer in JSON when it asks for JSON output.
         ctx.meta["odmd_bench.args"] = list(args)
@@ -79,6 +111,12 @@ class _Group(click.Group):
                 raise
             self._report(ctx, e.format_message(), [], "")
             ctx.exit(e.exit_code)
+        except ModuleNotFoundError as e:  # an optional dependency a command needs
+            from odmd_bench.extras import missing_module_error
+
+            err = missing_module_error(e, f"odmd-bench {ctx.invoked_subcommand or ''}".strip())
+            self._report(ctx, err.message, err.problems, f"error: {err.render()}")
+            ctx.exit(2)
         except OSError as e:
             line = _os_error_line(e)
             self._report(ctx, line, [], f"error: {line}")
@@ -110,9 +148,9 @@ def cli() -> None:
 
 
 def _register() -> None:
-    from odmd_bench.cli import baseline, data, dbox, evaluate, leaderboard, plot, predict
+    from odmd_bench.cli import baseline, data, evaluate, leaderboard, plot, predict
 
-    for module in (data, baseline, predict, evaluate, plot, leaderboard, dbox):
+    for module in (data, baseline, predict, evaluate, plot, leaderboard):
         for command in module.COMMANDS:
             cli.add_command(command)
 

@@ -1,7 +1,12 @@
-"""Options shared by several commands, declared once."""
+"""Options shared by several commands, declared once.
+
+Public for plug-in commands (entry-point group ``odmd_bench.commands``), so that an added
+command takes ``--data-dir`` as every other command does.
+"""
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import click
@@ -24,3 +29,14 @@ data_dir_option = click.option(
 data_dir_or_out_option = click.option(
     "--data-dir", "--out", "data_dir", type=_DATA_DIR_TYPE, default=None, help=DATA_DIR_HELP
 )
+
+
+def same_file(a: Path, b: Path) -> bool:
+    """Whether two paths name one file (symbolic and hard links alike)."""
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return a.resolve() == b.resolve()
+
+
+__all__ = ["data_dir_option", "data_dir_or_out_option", "same_file"]

@@ -2,14 +2,13 @@
 
 from __future__ import annotations
 
-import os
 import sys
 from pathlib import Path
 from typing import Any
 
 import click
 
-from odmd_bench.cli.options import data_dir_option
+from odmd_bench.cli.options import data_dir_option, same_file
 from odmd_bench.errors import UsageError, ValidationError
 from odmd_bench.evaluation.depth_bins import DEFAULT_BINS, ERRORS
 
@@ -18,13 +17,6 @@ _OUT = click.Path(path_type=Path, dir_okay=False)
 
 #: The warning every file of a whole split gets when one set is plotted: expected, not shown.
 _IGNORED_SETS = "ignored rows of sets not asked for"
-
-
-def _same_file(a: Path, b: Path) -> bool:
-    try:
-        return os.path.samefile(a, b)
-    except OSError:
-        return a.resolve() == b.resolve()
 
 
 def _labels(preds: tuple[Path, ...], given: tuple[str, ...]) -> list[str]:
@@ -57,9 +49,9 @@ def _check_usage(
         f"{opt} {out} is the predictions file {p}; write it elsewhere"
         for opt, out in outputs.items()
         for p in preds
-        if str(p) != "-" and _same_file(out, p)
+        if str(p) != "-" and same_file(out, p)
     ]
-    if csv_out is not None and _same_file(output, csv_out):
+    if csv_out is not None and same_file(output, csv_out):
         problems.append(f"-o and --csv name the same file {output}")
     if problems:
         raise UsageError("cannot plot", problems)

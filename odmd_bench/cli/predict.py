@@ -11,9 +11,6 @@ from typing import Any
 
 import click
 
-#: The method-specific options, passed only to a method that takes them.
-OPTIONS = ("weights", "config", "mode")
-
 
 def default_output(source: str, method: str) -> Path:
     """``<input name>-<method>.csv`` in the current folder (``depths-<method>.csv`` for stdin)."""
@@ -57,7 +54,8 @@ def error_summary(truth: Any, depth: Any) -> str:
     type=float,
     default=None,
     metavar="FX FY CX CY",
-    help="Camera intrinsics in pixels (same pixel frame as the boxes); needed by parallax and robust.",
+    help="Camera intrinsics in pixels (same pixel frame as the boxes), for the calibrated methods "
+    "(see odmd-bench baseline --list).",
 )
 @click.option(
     "-o",
@@ -71,8 +69,14 @@ def error_summary(truth: Any, depth: Any) -> str:
     default=None,
     help="Checkpoint file, for the methods that load one.",
 )
-@click.option("--config", default=None, help="Named configuration, for the methods that have them (dbox).")
-@click.option("--mode", default=None, help="Mode, for the methods that have several (robust).")
+@click.option(
+    "--config",
+    default=None,
+    help="Named configuration, for the methods that have them (see odmd-bench baseline --list).",
+)
+@click.option(
+    "--mode", default=None, help="Mode, for the methods that have several (see odmd-bench baseline --list)."
+)
 def predict(
     sequences: str,
     method_name: str,

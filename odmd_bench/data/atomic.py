@@ -16,6 +16,7 @@ import contextlib
 import errno as errno_codes
 import os
 import re
+import socket
 import sys
 import tempfile
 import time
@@ -98,26 +99,51 @@ def ensure_folder(folder: Path) -> None:
 # ------------------------------------------------------------------ atomic writes
 
 
-def _umask() -> int:
-    mask = os.umask(0)
+def _read_umask() -> int:
+    """The process's umask, read once (setting it to read it is racy with other threads)."""
+    try:  # Linux says it without changing it
+        for line in Path("/proc/self/status").read_text().splitlines():
+            if line.startswith("Umask:"):
+                return int(line.split()[1], 8)
+    except (OSError, ValueError, IndexError):
+        pass
+    mask = os.umask(0o022)
     os.umask(mask)
     return mask
+
+
+#: Permissions of the files the package writes: what ``open`` would give them.
+_FILE_MODE = 0o666 & ~_read_umask()
 
 
 def _temp_prefix(target: Path) -> str:
     return f".{target.name}."
 
 
+def _host() -> str:
+    """This machine's name, reduced to what is safe in a file name (no dots, no dashes)."""
+    return re.sub(r"[^A-Za-z0-9]", "", socket.gethostname())[:32] or "host"
+
+
 def _temp_beside(target: Path) -> tuple[int, str]:
     ensure_folder(target.parent)
     try:
-        # The writer's pid is in the name, so that a later writer can tell a dead
-        # writer's leftover from a live writer's file (see clean_stale_temps).
+        # The writer's machine and pid are in the name, so that a later writer can tell a
+        # dead writer's leftover from a live writer's file (see clean_stale_temps).
         fd, tmp = tempfile.mkstemp(
-            prefix=f"{_temp_prefix(target)}{os.getpid()}.", suffix=".tmp", dir=target.parent
+            prefix=f"{_temp_prefix(target)}{_host()}-{os.getpid()}.", suffix=".tmp", dir=target.parent
         )
-        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; give the file normal permissions
     except OSError as e:
+        raise storage_error(e, target.parent, "write into") from None
+    try:  # mkstemp makes 0600; give the file the permissions open() would
+        if hasattr(os, "fchmod"):
+            os.fchmod(fd, _FILE_MODE)
+        else:  # pragma: no cover - Windows
+            os.chmod(tmp, _FILE_MODE)
+    except OSError as e:
+        os.close(fd)
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
         raise storage_error(e, target.parent, "write into") from None
     return fd, tmp
 
@@ -135,11 +161,11 @@ def _pid_alive(pid: int) -> bool:
 def clean_stale_temps(target: str | os.PathLike[str], max_age: float = STALE_TEMP_SECONDS) -> list[Path]:
     """Remove this package's temporary files for ``target`` left by dead writers.
 
-    Only files named as :func:`atomic_path` names them (``.NAME.PID.XXXX.tmp`` beside
-    ``target``) are considered. One is removed when its writer's process no longer
-    exists on this machine, or when it is older than ``max_age`` seconds (a dead
-    writer whose pid was reused; leftovers of earlier versions without a pid). A
-    live writer's recent temporary file is never touched. Returns the removed paths.
+    Only files named as :func:`atomic_path` names them (``.NAME.HOST-PID.XXXX.tmp``
+    beside ``target``) are considered. One written on this machine is removed when its
+    writer's process no longer exists, and never while it does. One written on another
+    machine (a shared data folder), or by an earlier version without the writer in its
+    name, is removed only when older than ``max_age`` seconds. Returns the removed paths.
     """
     target = Path(target)
     prefix = _temp_prefix(target)
@@ -153,17 +179,19 @@ def clean_stale_temps(target: str | os.PathLike[str], max_age: float = STALE_TEM
         name = p.name
         if not (name.startswith(prefix) and name.endswith(".tmp")):
             continue
-        middle = name[len(prefix) : -len(".tmp")]
-        pid_text, _, _ = middle.partition(".")
+        writer, _, _ = name[len(prefix) : -len(".tmp")].partition(".")
+        host, _, pid_text = writer.rpartition("-")
         try:
             st = p.lstat()
         except OSError:
             continue
         if not p.is_file() or p.is_symlink():
             continue
-        old = now - st.st_mtime > max_age
-        dead = pid_text.isdigit() and int(pid_text) != os.getpid() and not _pid_alive(int(pid_text))
-        if old or dead:
+        if host == _host() and pid_text.isdigit():  # written here: the process decides
+            stale = int(pid_text) != os.getpid() and not _pid_alive(int(pid_text))
+        else:
+            stale = now - st.st_mtime > max_age
+        if stale:
             with contextlib.suppress(OSError):
                 p.unlink()
                 removed.append(p)
@@ -216,7 +244,8 @@ def atomic_write(path: str | os.PathLike[str], mode: str = "wb") -> Iterator[IO[
 
     See :func:`atomic_path`.
     """
-    with atomic_path(path) as tmp, open(tmp, mode) as fh:
+    encoding = None if "b" in mode else "utf-8"  # text is UTF-8 whatever the locale
+    with atomic_path(path) as tmp, open(tmp, mode, encoding=encoding) as fh:
         yield fh
 
 
@@ -234,7 +263,7 @@ def locked(path: str | os.PathLike[str]) -> Iterator[Path]:
     ensure_folder(target.parent)
     lock = target.parent / f".{target.name}.lock"
     try:
-        fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o666 & ~_umask())
+        fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o666)  # the kernel applies the umask
     except OSError as e:
         raise storage_error(e, lock, "create the lock file") from None
     try:

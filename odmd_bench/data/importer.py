@@ -31,7 +31,7 @@ from odmd_bench.data.io import set_names, write_sets
 from odmd_bench.data.manifests import known_originals
 from odmd_bench.data.registry import get_benchmark, set_file
 from odmd_bench.data.store import pin_problem, read_checked
-from odmd_bench.errors import DataError, ImportRefused
+from odmd_bench.errors import DataError, ImportRefused, StorageError
 
 log = logging.getLogger("odmd_bench")
 
@@ -338,6 +338,8 @@ def _kept_sets(
         return {}
     try:
         names = set_names(path)
+    except StorageError:
+        raise  # the file may be fine (a permission, an I/O error): never replace it on a guess
     except DataError as e:
         say(f"{path} cannot be read and is replaced; only the sets imported now will be in it ({e.message})")
         return {}
@@ -351,6 +353,8 @@ def _kept_sets(
             continue
         try:
             kept[name] = read_checked(path, bench, split, name, data_dir, fix="import it again")
+        except StorageError:
+            raise
         except DataError as e:
             say(f"{path}: dropped the set {name!r}: {e.render()}")
     return kept

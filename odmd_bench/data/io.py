@@ -96,9 +96,10 @@ def _open_h5(p: Path, fix: str | None) -> Any:
     import h5py
 
     if p.is_dir():
+        # In the data folder a folder in a data file's place is debris: say how to clear it.
+        advice = f"; remove it (rm -r {p}) and {fix}" if fix else "; give the path of an HDF5 file"
         raise StorageError(
-            f"cannot read {p}: it is a folder, not a data file; remove it (rm -r {p})"
-            + (f" and {fix}" if fix else ""),
+            f"cannot read {p}: it is a folder, not a data file{advice}",
             errno=errno_codes.EISDIR,
             filename=str(p),
         )

@@ -18,7 +18,7 @@ A file is refused as a whole, naming every problem of stages 1 and 3 in one
 from __future__ import annotations
 
 import os
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -41,14 +41,9 @@ __all__ = [
     "SHOWN",
     "EvaluationResult",
     "Predictions",
-    "SetSizes",
     "evaluate",
-    "read_predictions",
     "score",
 ]
-
-#: ``(benchmark, split) -> {set: number of examples}``, for :func:`read_predictions`.
-SetSizes = Callable[[str, str], Mapping[str, int]]
 
 
 def score(predictions: Predictions, examples: Mapping[str, Examples]) -> EvaluationResult:
@@ -158,24 +153,3 @@ def evaluate(
     examples = load_split(parsed.split, parsed.benchmark, data_dir, list(scope) if scope else None)
     predictions = check_coverage(parsed, {s: len(ex) for s, ex in examples.items()}, sets=sets)
     return score(predictions, examples)
-
-
-def read_predictions(
-    path: Source,
-    *,
-    set_sizes: SetSizes,
-    benchmark: str | None = None,
-    sets: Sequence[str] | None = None,
-) -> Predictions:
-    """Parse and check a predictions file (compatibility: prefer the pipeline's stages).
-
-    Equivalent to :func:`~odmd_bench.evaluation.parse.parse_predictions` then
-    :func:`~odmd_bench.evaluation.coverage.check_coverage` with the sizes
-    ``set_sizes(benchmark, split)`` returns once the file's benchmark and split are known.
-    """
-    if benchmark is not None and sets is not None:
-        check_sets(sets, get_benchmark(benchmark))
-    parsed = parse_predictions(path, benchmark=benchmark, strict=False)
-    if parsed.benchmark is None or parsed.split is None:
-        raise parsed.problems.error(parsed.name)
-    return check_coverage(parsed, set_sizes(parsed.benchmark, parsed.split), sets=sets)

@@ -1,4 +1,7 @@
-"""``train-dbox``: train the DBox network (torch is imported inside the command only)."""
+"""``odmd-bench train-dbox``: train the DBox network (torch is imported inside the command only).
+
+A plug-in command: registered in the entry-point group ``odmd_bench.commands``.
+"""
 
 from __future__ import annotations
 
@@ -89,7 +92,7 @@ def train_dbox(
     Prints a progress line (loss, latest and best validation score). The best model
     is written to OUT/dbox_CONFIG.pt (original key layout) with a JSON record beside it.
     """
-    import torch
+    import torch  # a missing torch is reported by the command line with the extra to install
     from odmd_bench_baselines.dbox.train import train
 
     if threads:
@@ -119,6 +122,3 @@ def train_dbox(
     scores = ", ".join(f"{k} {v:.3f}" for k, v in result.best_scores.items())
     click.echo(f"best step {result.best_step}: val mean percent error {scores}")
     click.echo(f"weights: {result.weights}")
-
-
-COMMANDS = [train_dbox]
