@@ -28,7 +28,7 @@ from odmd_bench.data.hashing import content_sha256, group_attrs, set_arrays
 from odmd_bench.data.io import read_set, write_sets
 from odmd_bench.data.manifests import read_manifest, splits_dir
 from odmd_bench.data.registry import check_set, check_split, get_benchmark, rebuild_command, set_file
-from odmd_bench.errors import DataError
+from odmd_bench.errors import DataError, MissingDataError
 
 log = logging.getLogger("odmd_bench")
 
@@ -223,7 +223,7 @@ def ensure_generated(
 def _reused(path: Path, benchmark: str, split: str, say: Progress) -> dict[str, Any]:
     """What :func:`ensure_generated` reports for a file that is already right."""
     say(f"{path}: already up to date")
-    return {"path": path, "reused": True, "sets": _hashes(path, benchmark, split), "replaced": None}
+    return {"path": path, "reused": True, "sets": _pinned_hashes(benchmark, split), "replaced": None}
 
 
 def _write_generated(path: Path, benchmark: str, split: str, say: Progress) -> dict[str, Any]:
@@ -251,10 +251,11 @@ def _write_generated(path: Path, benchmark: str, split: str, say: Progress) -> d
     if why is not None:
         raise DataError(f"{path}: written file failed verification: {why}")
     say(f"{path}: written and verified")
-    return {"path": path, "reused": False, "sets": _hashes(path, benchmark, split)}
+    return {"path": path, "reused": False, "sets": _pinned_hashes(benchmark, split)}
 
 
-def _hashes(path: Path, benchmark: str, split: str) -> dict[str, str]:
+def _pinned_hashes(benchmark: str, split: str) -> dict[str, str]:
+    """The pinned content hash of every set of a split (what a verified file holds)."""
     return {s: pin(benchmark, split, s)["sha256"] for s in get_benchmark(benchmark).sets}
 
 
@@ -267,8 +268,6 @@ def _path_for(split: str, benchmark: str, data_dir: str | os.PathLike[str] | Non
             log.warning("%s is missing; generating %s %s first", path, benchmark, split)
             ensure_generated(benchmark, [split], data_dir)
         else:
-            from odmd_bench.errors import MissingDataError
-
             raise MissingDataError(
                 f"{benchmark} {split} is not in the data folder ({path} is missing); it is "
                 f"imported, not generated: run `{rebuild_command(benchmark, data_dir)}` "

@@ -13,7 +13,7 @@ from odmd_bench.data.atomic import atomic_write
 from odmd_bench.errors import UsageError, ValidationError
 from odmd_bench.leaderboard.board import load_board_data, score_entry
 from odmd_bench.leaderboard.entry import Entry
-from odmd_bench.leaderboard.files import ENTRIES, MAX_PREDICTIONS_BYTES, read_capped, read_entry
+from odmd_bench.leaderboard.files import ENTRIES, read_entry, read_predictions_bytes
 from odmd_bench.leaderboard.rules import method_id_problems
 from odmd_bench.leaderboard.specs import board_spec
 
@@ -27,12 +27,9 @@ def _gzip_bytes(data: bytes) -> bytes:
 
 def _read_input(path: Path) -> bytes:
     try:
-        data = read_capped(path, MAX_PREDICTIONS_BYTES)
-    except OSError as e:
-        raise ValidationError(f"{path} cannot be added", [f"it cannot be read ({e.strerror or e})"]) from None
-    if len(data) > MAX_PREDICTIONS_BYTES:
-        raise ValidationError(f"{path} cannot be added", [f"its size exceeds {MAX_PREDICTIONS_BYTES} bytes"])
-    return data
+        return read_predictions_bytes(path)
+    except ValidationError as e:
+        raise ValidationError(f"{path} cannot be added", e.problems) from None
 
 
 def add_entry(

@@ -15,16 +15,13 @@ before anything in it is read (a link is never followed, and its target never sh
 
 from __future__ import annotations
 
-import gzip
-import io
 import os
-import zlib
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from odmd_bench.data.atomic import atomic_write
 from odmd_bench.errors import UsageError, ValidationError
-from odmd_bench.evaluation.source import MAX_PREDICTIONS_BYTES
+from odmd_bench.evaluation.source import MAX_PREDICTIONS_BYTES, read_source
 from odmd_bench.leaderboard.entry import ENTRY_FILES, Entry, validate_meta
 from odmd_bench.leaderboard.safeyaml import MAX_DOCUMENT_BYTES, DocumentError, load_document
 
@@ -157,7 +154,10 @@ def read_entry(folder: str | os.PathLike[str], repo_root: str | os.PathLike[str]
 
 
 def read_predictions_bytes(path: Path) -> bytes:
-    """The predictions CSV's bytes, decompressed when the name ends in ``.gz``.
+    """The predictions CSV's bytes, decompressed when gzip-compressed.
+
+    Read without following a link (:func:`read_capped`), then as the evaluator reads any
+    input (:func:`~odmd_bench.evaluation.source.read_source`: gzip, the size cap).
 
     Raises:
         ValidationError: When it cannot be read, is a link, or is larger than
@@ -166,18 +166,9 @@ def read_predictions_bytes(path: Path) -> bytes:
     title = f"{path} cannot be scored"
     try:
         raw = read_capped(path, MAX_PREDICTIONS_BYTES)
-        if path.suffix == ".gz" and len(raw) <= MAX_PREDICTIONS_BYTES:
-            with gzip.GzipFile(fileobj=io.BytesIO(raw)) as fh:
-                data = fh.read(MAX_PREDICTIONS_BYTES + 1)
-        else:
-            data = raw
-    except (EOFError, zlib.error, gzip.BadGzipFile) as e:
-        raise ValidationError(title, [f"not a readable gzip file ({e})"]) from None
     except OSError as e:
         raise ValidationError(title, [f"the file cannot be read ({e.strerror or e})"]) from None
-    if len(data) > MAX_PREDICTIONS_BYTES:
-        raise ValidationError(title, [f"its size exceeds {MAX_PREDICTIONS_BYTES} bytes"])
-    return data
+    return read_source(raw, name=str(path), title=title)[0]
 
 
 def readme_path(root: str | os.PathLike[str]) -> Path:
