@@ -9,16 +9,11 @@ a usage error naming the extra to install.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
 
 import click
 
-from odmd_bench.cli.options import data_dir_option
+from odmd_bench.cli.options import METHOD_OPTIONS, data_dir_option, given_options, method_options
 from odmd_bench.data.registry import BENCHMARKS, DEFAULT_BENCHMARK, SPLITS
-
-#: The method-specific options: each is passed, as the keyword of its name, only to a
-#: method whose functions take that keyword (others refuse it, naming those that take it).
-OPTIONS = ("weights", "config", "selection", "mode")
 
 
 def _list_methods(ctx: click.Context, _param: click.Parameter, value: bool) -> None:
@@ -33,7 +28,7 @@ def _list_methods(ctx: click.Context, _param: click.Parameter, value: bool) -> N
         except UsageError as e:  # a broken plug-in is listed as such, not a failure of --list
             click.echo(f"{name}: not usable: {e}")
             continue
-        taken = [f"--{k}" for k in OPTIONS if method.accepts(k)]
+        taken = [f"--{k}" for k in METHOD_OPTIONS if method.accepts(k)]
         click.echo(
             f"{name}: {method.target} (from {method.source})"
             + (f"; takes {' '.join(taken)}" if taken else "")
@@ -75,25 +70,7 @@ def default_output(name: str, benchmark: str, split: str) -> Path:
     help="Predictions CSV to write (default: preds-NAME-BENCHMARK-SPLIT.csv here).",
 )
 @data_dir_option
-@click.option(
-    "--weights",
-    type=click.Path(exists=True, dir_okay=False, path_type=Path),
-    default=None,
-    help="Checkpoint file for the methods that load one (see --list).",
-)
-@click.option(
-    "--config", default=None, help="Named configuration, for the methods that have them (see --list)."
-)
-@click.option(
-    "--selection",
-    default=None,
-    help="How the weights were selected, for the methods that ship several (see --list).",
-)
-@click.option(
-    "--mode",
-    default=None,
-    help="Mode, for the methods that have several (see --list).",
-)
+@method_options
 def baseline(
     name: str,
     benchmark: str,
@@ -116,9 +93,7 @@ def baseline(
     from odmd_bench.evaluation.predictions import write_predictions
 
     method = methods.load(name)
-    given = {"weights": weights, "config": config, "selection": selection, "mode": mode}
-    options: dict[str, Any] = {k: v for k, v in given.items() if v is not None}
-    methods.check_options(method, options, spell=lambda k: f"--{k}")
+    options = given_options(method, weights=weights, config=config, selection=selection, mode=mode)
 
     sets = load_split(split, benchmark, data_dir)
     depths: dict[str, np.ndarray] = {}

@@ -7,7 +7,9 @@ command takes ``--data-dir`` as every other command does.
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any, TypeVar
 
 import click
 
@@ -39,4 +41,61 @@ def same_file(a: Path, b: Path) -> bool:
         return a.resolve() == b.resolve()
 
 
-__all__ = ["data_dir_option", "data_dir_or_out_option", "same_file"]
+#: The options a method may take; each is passed only to a method whose ``predict`` does.
+METHOD_OPTIONS: tuple[str, ...] = ("weights", "config", "selection", "mode")
+
+F = TypeVar("F", bound=Callable[..., Any])
+
+
+def method_options(f: F) -> F:
+    """Add ``--weights``, ``--config``, ``--selection`` and ``--mode`` to a command running a method."""
+    decorators = [
+        click.option(
+            "--weights",
+            type=click.Path(exists=True, dir_okay=False, path_type=Path),
+            default=None,
+            help="Checkpoint file, for the methods that load one (see odmd-bench baseline --list).",
+        ),
+        click.option(
+            "--config",
+            default=None,
+            help="Named configuration, for the methods that have them (see odmd-bench baseline --list).",
+        ),
+        click.option(
+            "--selection",
+            default=None,
+            help="How the weights were selected, for the methods that ship several "
+            "(see odmd-bench baseline --list).",
+        ),
+        click.option(
+            "--mode",
+            default=None,
+            help="Mode, for the methods that have several (see odmd-bench baseline --list).",
+        ),
+    ]
+    for decorate in reversed(decorators):
+        f = decorate(f)
+    return f
+
+
+def given_options(method: Any, **values: Any) -> dict[str, Any]:
+    """The method options given on the command line, checked against what ``method`` takes.
+
+    Raises:
+        UsageError: an option the method does not take (every one named).
+    """
+    from odmd_bench import methods
+
+    options = {k: v for k, v in values.items() if v is not None}
+    methods.check_options(method, options, spell=lambda k: f"--{k}")
+    return options
+
+
+__all__ = [
+    "METHOD_OPTIONS",
+    "data_dir_option",
+    "data_dir_or_out_option",
+    "given_options",
+    "method_options",
+    "same_file",
+]

@@ -11,6 +11,8 @@ from typing import Any
 
 import click
 
+from odmd_bench.cli.options import given_options, method_options
+
 
 def default_output(source: str, method: str) -> Path:
     """``<input name>-<method>.csv`` in the current folder (``depths-<method>.csv`` for stdin)."""
@@ -63,20 +65,7 @@ def error_summary(truth: Any, depth: Any) -> str:
     default=None,
     help="Depths CSV to write; '-' for standard output (default: SEQUENCES-METHOD.csv here).",
 )
-@click.option(
-    "--weights",
-    type=click.Path(exists=True, dir_okay=False, path_type=Path),
-    default=None,
-    help="Checkpoint file, for the methods that load one.",
-)
-@click.option(
-    "--config",
-    default=None,
-    help="Named configuration, for the methods that have them (see odmd-bench baseline --list).",
-)
-@click.option(
-    "--mode", default=None, help="Mode, for the methods that have several (see odmd-bench baseline --list)."
-)
+@method_options
 def predict(
     sequences: str,
     method_name: str,
@@ -85,6 +74,7 @@ def predict(
     output: str | None,
     weights: Path | None,
     config: str | None,
+    selection: str | None,
     mode: str | None,
 ) -> None:
     """Estimate the depth at the last observation of every sequence in SEQUENCES.csv.
@@ -105,9 +95,7 @@ def predict(
     from odmd_bench.predict import format_depths, predict_sequences
 
     method = methods.load(method_name)
-    given = {"weights": weights, "config": config, "mode": mode}
-    options: dict[str, Any] = {k: v for k, v in given.items() if v is not None}
-    methods.check_options(method, options, spell=lambda k: f"--{k}")
+    options = given_options(method, weights=weights, config=config, selection=selection, mode=mode)
 
     seqs = read_sequences(sequences, image_size, intrinsics)
     result = predict_sequences(seqs, method, **options)
