@@ -122,3 +122,38 @@ def train_dbox(
     scores = ", ".join(f"{k} {v:.3f}" for k, v in result.best_scores.items())
     click.echo(f"best step {result.best_step}: val mean percent error {scores}")
     click.echo(f"weights: {result.weights}")
+
+
+@click.command(name="select-dbox")
+@click.argument("runs", nargs=-1, required=True, type=click.Path(file_okay=False, path_type=Path))
+@click.option(
+    "--config",
+    "config",
+    type=click.Choice(["p", "ns", "abs", "p-z", "ns-z", "abs-z"]),
+    required=True,
+    help="The configuration the runs trained.",
+)
+@click.option(
+    "--out",
+    type=click.Path(file_okay=False, path_type=Path),
+    required=True,
+    help="Folder for the chosen checkpoints and records (e.g. baselines/dbox/weights).",
+)
+def select_dbox(runs: tuple[Path, ...], config: str, out: Path) -> None:
+    """Choose among several train-dbox runs of one configuration, on val only.
+
+    The overall checkpoint is the run with the lowest best val All; each per-set
+    checkpoint is the run with the lowest best val score on that set (ties: the run
+    given first). Every candidate is hash-checked; the chosen files are copied with
+    their records, which list every candidate and its score.
+    """
+    from odmd_bench_baselines.dbox.select import select_runs, write_selection
+
+    command = shlex.join(
+        ["odmd-bench", "select-dbox", *map(str, runs), "--config", config, "--out", str(out)]
+    )
+    selection = select_runs(runs, config)
+    write_selection(selection, out, command)
+    for key, cand in selection.chosen.items():
+        others = ", ".join(f"{c.score:.3f}" for c in selection.candidates[key])
+        click.echo(f"{key:>8}: {cand.run} (val {cand.score:.3f}; candidates {others})")
