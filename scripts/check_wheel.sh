@@ -145,6 +145,7 @@ run full baseline box-ls -o box.csv
 run full baseline dbox -o dbox.csv
 run full evaluate box.csv
 run full evaluate dbox.csv
+run full select-dbox --help
 if [ -n "$original" ]; then
     run full import "$original"
 else
