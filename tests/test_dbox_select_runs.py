@@ -141,3 +141,26 @@ def test_the_command_prints_the_choice_and_exits_2_on_bad_runs(
         cli, ["select-dbox", str(tmp_path / "w"), "--config", "ns-z", "--out", str(tmp_path / "x")]
     )
     assert bad.exit_code == 2 and "Traceback" not in bad.output, bad.output
+
+
+def test_every_shipped_selection_follows_the_rule_on_its_recorded_candidates() -> None:
+    """A shipped file chosen by select-dbox is the first candidate with the lowest val score."""
+    from odmd_bench_baselines import dbox
+
+    records = sorted(dbox.WEIGHTS_DIR.glob("dbox_*.json"))
+    checked = 0
+    for path in records:
+        record = json.loads(path.read_text())
+        candidates = record.get("selected_from")
+        if candidates is None:
+            continue
+        checked += 1
+        key = candidates[0]["on"]
+        assert all(c["on"] == key for c in candidates), path.name
+        assert (key == "all") == (path.name.count(".") == 1), path.name  # the overall file or a set's
+        best = min(c["val"] for c in candidates)
+        first = next(c for c in candidates if c["val"] == best)
+        assert record["val_mean_percent_error"][key] == best, path.name
+        assert record["command"] == first["command"], path.name
+        assert record["select_command"].startswith("odmd-bench select-dbox "), path.name
+    assert checked >= 15  # the three z configurations: overall and four sets each
