@@ -7,18 +7,23 @@ from __future__ import annotations
 
 import shlex
 import sys
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import click
+from odmd_bench_baselines.dbox import CONFIGS
 
 from odmd_bench.cli.options import data_dir_option
 
 
+def config_option(**kwargs: Any) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
+    """The ``--config`` option: one of the paper's six DBox configurations."""
+    return click.option("--config", "config", type=click.Choice(CONFIGS), **kwargs)
+
+
 @click.command(name="train-dbox")
-@click.option(
-    "--config",
-    "config",
-    type=click.Choice(["p", "ns", "abs", "p-z", "ns-z", "abs-z"]),
+@config_option(
     default="p",
     show_default=True,
     help="p: perturbations, f_Rel (the paper's best); ns: no perturbation; abs: f_Abs; "
@@ -126,13 +131,7 @@ def train_dbox(
 
 @click.command(name="select-dbox")
 @click.argument("runs", nargs=-1, required=True, type=click.Path(file_okay=False, path_type=Path))
-@click.option(
-    "--config",
-    "config",
-    type=click.Choice(["p", "ns", "abs", "p-z", "ns-z", "abs-z"]),
-    required=True,
-    help="The configuration the runs trained.",
-)
+@config_option(required=True, help="The configuration the runs trained.")
 @click.option(
     "--out",
     type=click.Path(file_okay=False, path_type=Path),
