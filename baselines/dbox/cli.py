@@ -15,6 +15,7 @@ import click
 from odmd_bench_baselines.dbox import CONFIGS
 
 from odmd_bench.cli.options import data_dir_option
+from odmd_bench.data.registry import BENCHMARKS
 
 
 def config_option(**kwargs: Any) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
@@ -77,6 +78,13 @@ def config_option(**kwargs: Any) -> Callable[[Callable[..., Any]], Callable[...,
     show_default=True,
     help="CPU threads for torch (0: torch's default). Results are reproducible for a given count on a given kind of CPU.",
 )
+@click.option(
+    "--val-benchmark",
+    type=click.Choice(list(BENCHMARKS)),
+    default=None,
+    help="Benchmark whose val split selects the model [default: odmd-v1 for p, ns, abs; "
+    "odms-detection for the z-axis configurations]. The training data do not depend on it.",
+)
 @data_dir_option
 def train_dbox(
     config: str,
@@ -90,6 +98,7 @@ def train_dbox(
     lr: float,
     init: Path | None,
     threads: int,
+    val_benchmark: str | None,
     data_dir: Path | None,
 ) -> None:
     """Train DBox on freshly generated examples; keep the best model by validation.
@@ -106,6 +115,7 @@ def train_dbox(
     args = ["odmd-bench", "train-dbox", "--config", config, "--steps", str(steps), "--seed", str(seed)]
     args += ["--val-every", str(val_every)] if val_every is not None else []
     args += ["--schedule", schedule, "--lr", f"{lr:g}"] + (["--init", str(init)] if init else [])
+    args += ["--val-benchmark", val_benchmark] if val_benchmark is not None else []
     args += ["--threads", str(threads), "--device", device, "--out", str(out)]
     args += ["--resume"] if resume else []
     command = shlex.join(args)
@@ -121,6 +131,7 @@ def train_dbox(
         lr=lr,
         init=init,
         data_dir=data_dir,
+        val_benchmark=val_benchmark,
         command=command,
         progress=sys.stderr,
     )

@@ -34,6 +34,7 @@ Files in the output folder:
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import sys
@@ -50,6 +51,7 @@ from odmd_bench_baselines.dbox.model import DBox, make_inputs, predict_depth, us
 
 import odmd_bench
 from odmd_bench import DataError, Examples, UsageError, atomic_path, atomic_write, file_sha256
+from odmd_bench.data.registry import get_benchmark
 
 BATCH_SIZE = 512
 LEARNING_RATE = 1e-3
@@ -225,6 +227,7 @@ def train(
     val_sets: Mapping[str, Examples] | None = None,
     data_dir: str | Path | None = None,
     batch_size: int = BATCH_SIZE,
+    val_benchmark: str | None = None,
     command: str | None = None,
     progress: TextIO | None = sys.stderr,
     progress_every: int = 50,
@@ -248,10 +251,14 @@ def train(
         init: start from these weights (a checkpoint in the original layout, e.g.
             an earlier run's best) instead of the seeded random initialisation; the
             optimizer starts fresh. For a second, lower-rate cosine cycle.
-        val_sets: the validation sets; default: all sets of the config's validation
+        val_sets: the validation sets; default: all sets of the validation
             benchmark's ``val`` split, read from the data folder.
         data_dir: data folder for the default validation sets.
         batch_size: examples per step (512 in the paper).
+        val_benchmark: the benchmark whose ``val`` split selects the model (default:
+            the config's, :data:`CONFIGS`). The training data do not depend on it: the
+            same seed and options give the same trajectory, selected on other data
+            (the paper selects its Table 1 rows on ODMD val, its Table 2 rows on ODMS).
         command: the command line to record beside the weights.
         progress: stream for the progress line (None: silent).
         progress_every: steps between progress lines when not on a terminal.
@@ -261,6 +268,8 @@ def train(
         :class:`TrainResult`.
     """
     cfg = get_config(config)
+    if val_benchmark is not None and val_benchmark != cfg.val_benchmark:
+        cfg = dataclasses.replace(cfg, val_benchmark=get_benchmark(val_benchmark).name)
     problems = []
     if isinstance(steps, bool) or not isinstance(steps, int) or steps < 1:
         problems.append(f"steps must be a positive integer, got {steps!r}")
@@ -307,6 +316,7 @@ def train(
         "batch_size": batch_size,
         "val_every": every,
         "val_sets": val_names,
+        "val_benchmark": cfg.val_benchmark,
     }
     model = DBox(generator=torch.Generator().manual_seed(seed)).to(dev)
     if init is not None:
@@ -326,6 +336,8 @@ def train(
     }
     if resume:
         state = _load_state(state_path)
+        # Runs saved before val_benchmark was a setting used the config's own.
+        state["settings"].setdefault("val_benchmark", get_config(config).val_benchmark)
         if state["settings"] != settings:
             diff = [
                 f"{k}: run has {state['settings'].get(k)!r}, asked for {settings[k]!r}"
