@@ -2,8 +2,8 @@
 # The wheel users install, tested as they get it (called by scripts/check.sh, so CI runs it):
 #   1. build it from the tracked and not-ignored files (no stale build/ folder can leak in);
 #   2. check what it holds: odmd_bench and odmd_bench_baselines only (nothing of tests/,
-#      leaderboard/ or benchmarks/), every .py file of odmd_bench/ and baselines/, and torch
-#      and matplotlib required by extras only;
+#      leaderboard/ or benchmarks/), every .py file of odmd_bench/ and baselines/, every
+#      shipped DBox weights file, and torch and matplotlib required by extras only;
 #   3. install it into a fresh venv, and from a folder outside the repository, with a data
 #      folder of its own, run generate, baseline box-ls and dbox, evaluate and import;
 #   4. install it into a second venv where torch and matplotlib cannot be imported: generate,
@@ -89,6 +89,15 @@ missing = [
 ]
 if missing:
     problems.append(f"{len(missing)} .py files are not in the wheel: {', '.join(missing)}")
+# Every shipped DBox checkpoint and record, in subfolders too (weights/selected-on-*/).
+weights = src / "baselines" / "dbox" / "weights"
+lost = [
+    str(p.relative_to(src))
+    for p in sorted(weights.rglob("*"))
+    if p.is_file() and f"odmd_bench_baselines/dbox/weights/{p.relative_to(weights).as_posix()}" not in names
+]
+if lost:
+    problems.append(f"{len(lost)} shipped weights files are not in the wheel: {', '.join(lost)}")
 requires = re.findall(r"^Requires-Dist: (.*)$", metadata, flags=re.M)
 for req in requires:
     name = re.match(r"[A-Za-z0-9._-]+", req).group(0).lower()

@@ -24,7 +24,7 @@ from odmd_bench_baselines.dbox.model import (  # noqa: E402
     predict_depth,
     reference_forward,
 )
-from odmd_bench_baselines.dbox.train import learning_rate, train  # noqa: E402
+from odmd_bench_baselines.dbox.train import CONFIGS, learning_rate, train  # noqa: E402
 
 import odmd_bench  # noqa: E402
 from odmd_bench.data.examples import Examples  # noqa: E402
@@ -520,6 +520,17 @@ def test_training_refuses_to_overwrite_or_resume_the_wrong_run(tmp_path: Path) -
         train("p", 5, tmp_path / "none", resume=True, **opts)  # type: ignore[arg-type]
     with pytest.raises(UsageError, match="p, ns, abs, p-z"):
         train("q", 5, tmp_path / "x", **opts)  # type: ignore[arg-type]
+
+
+def test_each_configuration_selects_on_the_benchmark_its_shipped_weights_name() -> None:
+    """Training's own val benchmark per configuration is the one prediction assumes."""
+    assert {name: cfg.val_benchmark for name, cfg in CONFIGS.items()} == dbox.VAL_BENCHMARK
+    for name in dbox.shipped():
+        record = json.loads(dbox.weights_path(name).with_suffix(".json").read_text())
+        assert record["val_benchmark"] == dbox.VAL_BENCHMARK[name], name
+    for record_path in dbox.WEIGHTS_DIR.glob("selected-on-*/dbox_*.json"):
+        record = json.loads(record_path.read_text())
+        assert record_path.parent.name == f"selected-on-{record['val_benchmark']}", record_path
 
 
 def test_the_val_benchmark_changes_the_selection_not_the_training(

@@ -133,6 +133,42 @@ def test_per_set_selection_runs_the_checkpoint_chosen_for_that_set(
         dbox.predict(_examples(5, "odms", 7), config="p-z", selection="per-set")
 
 
+# --- weights selected on the data's benchmark -----------------------------------------------
+
+
+def test_weights_selected_on_the_datas_benchmark_run_on_that_benchmark(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """p-z selected on ODMD val runs on ODMD data; ODMS data and unnamed data keep the ODMS one."""
+    monkeypatch.setattr(dbox, "WEIGHTS_DIR", tmp_path)
+    _write_checkpoint(tmp_path / "dbox_p-z.pt", 1)
+    _write_checkpoint(tmp_path / "dbox_p-z.robot.pt", 3)
+    (tmp_path / "selected-on-odmd-v1").mkdir()
+    odmd_file = _write_checkpoint(tmp_path / "selected-on-odmd-v1" / "dbox_p-z.pt", 2)
+    assert dbox.shipped() == {"p-z": ["robot"]}
+    assert dbox.weights_path("p-z", selected_on="odmd-v1") == odmd_file
+    assert dbox.weights_path("p-z", selected_on="odms-detection") == tmp_path / "dbox_p-z.pt"
+    for benchmark in ("odmd-paper", "odmd-v1"):
+        ex = _examples(30, "odmd", 8, benchmark=benchmark, set="robot")
+        assert dbox.selection_benchmark(ex) == "odmd-v1"
+        report = dbox.provenance(ex, config="p-z")
+        assert report["weights"] == "selected-on-odmd-v1/dbox_p-z.pt", report
+        np.testing.assert_array_equal(dbox.predict(ex, config="p-z"), dbox.predict(ex, weights=odmd_file))
+        # per-set selection is the ODMS protocol: the ODMS-val per-set file, as before
+        assert dbox.provenance(ex, config="p-z", selection="per-set")["weights"] == "dbox_p-z.robot.pt"
+    for attrs in ({"benchmark": "odms-detection"}, {}):
+        ex = _examples(30, "odms", 9, **attrs)
+        assert dbox.provenance(ex, config="p-z")["weights"] == "dbox_p-z.pt"
+    # p has no ODMS-selected file: ODMS data run its own (the name says which)
+    _write_checkpoint(tmp_path / "dbox_p.pt", 4, "p")
+    ex = _examples(10, "odms", 10, benchmark="odms-detection")
+    assert dbox.provenance(ex, config="p")["weights"] == "dbox_p.pt"
+    # a damaged file in the subfolder is a shipped file: reinstall
+    _flip_a_bit_inside_tensor_w(odmd_file)
+    with pytest.raises(DataError, match="reinstall odmd-bench"):
+        dbox.predict(_examples(5, "odmd", 11, benchmark="odmd-paper"), config="p-z")
+
+
 # --- hash-checked weights -----------------------------------------------------------------
 
 

@@ -147,7 +147,7 @@ def test_every_shipped_selection_follows_the_rule_on_its_recorded_candidates() -
     """A shipped file chosen by select-dbox is the first candidate with the lowest val score."""
     from odmd_bench_baselines import dbox
 
-    records = sorted(dbox.WEIGHTS_DIR.glob("dbox_*.json"))
+    records = sorted(dbox.WEIGHTS_DIR.rglob("dbox_*.json"))
     checked = 0
     for path in records:
         record = json.loads(path.read_text())

@@ -7,6 +7,11 @@
 so the x,y,z model never runs on z-only data unless asked for by name.
 ``selection="per-set"`` runs the paper's per-set selection (one checkpoint per ODMS set,
 each chosen on that set's val score) on the set named in ``examples.attrs["set"]``.
+A configuration's weights are selected on the val split of the benchmark family they
+run on when such weights ship: ``p-z`` (selected on ODMS-detection val) also ships a
+checkpoint of the same training runs selected on ODMD val, ``weights/selected-on-odmd-v1/``,
+which runs on the ODMD benchmarks (the paper selects its Table 1 rows on ODMD val, its
+Table 2 rows on ODMS val).
 ``predict(examples, weights=FILE)`` runs any checkpoint in the original release's layout
 (a state dict with keys ``W``, ``U``, ``bias``, ``V``, ``linears.0.weight`` ...
 ``linears.6.bias``), such as the release's ``DBox_pretrained_paper.pt``.
@@ -46,6 +51,8 @@ CONFIGS = ("p", "abs", "ns", "p-z", "ns-z", "abs-z")
 SELECTIONS = ("overall", "per-set")
 #: Benchmarks whose camera moves along z only.
 Z_ONLY_BENCHMARKS = ("odms-detection",)
+#: The benchmark whose val split selects each configuration's top-level shipped weights.
+VAL_BENCHMARK = {c: ("odms-detection" if c.endswith("-z") else "odmd-v1") for c in CONFIGS}
 #: Camera motion is z-only when no x or y offset exceeds this fraction of the largest z offset.
 Z_ONLY_RATIO = 0.1
 #: Checkpoints larger than this are refused before they are read (the network is 2.4 MB).
@@ -54,9 +61,33 @@ DEFAULT_WEIGHTS = WEIGHTS_DIR / "dbox_p.pt"
 _SHA256 = re.compile(r"[0-9a-f]{64}")
 
 
-def weights_path(config: str, set_name: str | None = None) -> Path:
-    """Where the shipped checkpoint of ``config`` lives (``set_name``: its per-set one)."""
-    return WEIGHTS_DIR / (f"dbox_{config}.pt" if set_name is None else f"dbox_{config}.{set_name}.pt")
+def weights_path(config: str, set_name: str | None = None, selected_on: str | None = None) -> Path:
+    """Where the shipped checkpoint of ``config`` lives.
+
+    Args:
+        config: the configuration.
+        set_name: its per-set checkpoint for this set.
+        selected_on: the checkpoint selected on this benchmark's val split when it is not
+            the configuration's own (:data:`VAL_BENCHMARK`): ``selected-on-<benchmark>/``.
+    """
+    folder = WEIGHTS_DIR
+    if selected_on is not None and selected_on != VAL_BENCHMARK.get(config):
+        folder = WEIGHTS_DIR / f"selected-on-{selected_on}"
+    return folder / (f"dbox_{config}.pt" if set_name is None else f"dbox_{config}.{set_name}.pt")
+
+
+def selection_benchmark(examples: Examples) -> str | None:
+    """The benchmark whose val split selects weights for ``examples``, when it is known.
+
+    ``odms-detection`` for the z-only benchmarks, ``odmd-v1`` for the ODMD ones
+    (``odmd-paper``'s sets are the same task), None for data that name no benchmark.
+    """
+    benchmark = examples.attrs.get("benchmark")
+    if benchmark in Z_ONLY_BENCHMARKS:
+        return str(benchmark)
+    if isinstance(benchmark, str) and benchmark.startswith("odmd"):
+        return "odmd-v1"
+    return None
 
 
 def per_set_path(weights: str | os.PathLike[str], set_name: str) -> Path:
@@ -167,7 +198,7 @@ def verify_weights(
     if actual != expected:
         fix = (
             "reinstall odmd-bench to restore the shipped weights"
-            if path.parent == WEIGHTS_DIR
+            if path.parent == WEIGHTS_DIR or path.parent.parent == WEIGHTS_DIR
             else "restore the file (or retrain it with odmd-bench train-dbox); if it was changed "
             "on purpose, record its new hash"
         )
@@ -288,7 +319,8 @@ def resolve_weights(
             sibling ``<stem>.<set>.pt``, as ``train-dbox`` writes them).
 
     Returns:
-        (checkpoint path, provenance: ``config``, ``selection``, ``weights``).
+        (checkpoint path, provenance: ``config``, ``selection``, ``weights`` (the path
+        inside the shipped weights folder, or one's own file's path)).
 
     Raises:
         UsageError: an unknown configuration or selection, or both ``config`` and
@@ -324,6 +356,9 @@ def resolve_weights(
             [f"train them with: odmd-bench train-dbox --config {name} --out DIR, then pass --weights"],
         )
     path = weights_path(name)
+    on = selection_benchmark(examples)
+    if selection == "overall" and weights_path(name, selected_on=on).is_file():
+        path = weights_path(name, selected_on=on)  # selected on the val of the data's benchmark
     if selection == "per-set":
         if str(set_name) not in available[name]:
             sets = ", ".join(available[name]) or "none"
@@ -332,7 +367,7 @@ def resolve_weights(
                 f"(per-set checkpoints: {sets}); use selection 'overall'"
             )
         path = weights_path(name, str(set_name))
-    return path, {"config": name, "selection": selection, "weights": path.name}
+    return path, {"config": name, "selection": selection, "weights": path.relative_to(WEIGHTS_DIR).as_posix()}
 
 
 def predict(
@@ -439,6 +474,7 @@ __all__ = [
     "DEFAULT_WEIGHTS",
     "OBSERVATIONS",
     "SELECTIONS",
+    "VAL_BENCHMARK",
     "check_state_dict",
     "default_config",
     "is_z_only",
@@ -448,6 +484,7 @@ __all__ = [
     "predict_report",
     "provenance",
     "resolve_weights",
+    "selection_benchmark",
     "shipped",
     "verify_weights",
     "weights_path",
