@@ -13,6 +13,7 @@ from odmd_bench.data.config import PRESETS, CameraConfig, GeneratorConfig
 from odmd_bench.data.examples import Examples, fill_missing, nearest_detected_index
 from odmd_bench.data.generator import GENERATOR_VERSION, generate, stream
 from odmd_bench.data.hashing import file_sha256
+from odmd_bench.data.registry import BENCHMARKS, Benchmark, get_benchmark
 from odmd_bench.data.sequences import read_sequences
 from odmd_bench.data.store import ensure_generated, load, load_split
 from odmd_bench.errors import (
@@ -36,8 +37,10 @@ from odmd_bench.predict import predict_sequences
 __version__ = "0.1.0"
 
 __all__ = [
+    "BENCHMARKS",
     "GENERATOR_VERSION",
     "PRESETS",
+    "Benchmark",
     "CameraConfig",
     "ConfigError",
     "DataError",
@@ -61,6 +64,7 @@ __all__ = [
     "file_sha256",
     "fill_missing",
     "generate",
+    "get_benchmark",
     "load",
     "load_split",
     "nearest_detected_index",

@@ -14,8 +14,8 @@ from typing import Any
 import click
 from odmd_bench_baselines.dbox import CONFIGS
 
+from odmd_bench import BENCHMARKS
 from odmd_bench.cli.options import data_dir_option
-from odmd_bench.data.registry import BENCHMARKS
 
 
 def config_option(**kwargs: Any) -> Callable[[Callable[..., Any]], Callable[..., Any]]:

@@ -50,8 +50,7 @@ from odmd_bench_baselines.dbox import per_set_path
 from odmd_bench_baselines.dbox.model import DBox, make_inputs, predict_depth, use_onednn
 
 import odmd_bench
-from odmd_bench import DataError, Examples, UsageError, atomic_path, atomic_write, file_sha256
-from odmd_bench.data.registry import get_benchmark
+from odmd_bench import DataError, Examples, UsageError, atomic_path, atomic_write, file_sha256, get_benchmark
 
 BATCH_SIZE = 512
 LEARNING_RATE = 1e-3
