@@ -663,6 +663,37 @@ def test_shipped_ns_z_and_abs_z_weights_give_the_val_numbers_docs_dbox_states(
     assert all(abs(got["per-set"][k] - per_set[k]) < 0.0051 for k in per_set), got["per-set"]
 
 
+def test_p_z_on_odmd_data_runs_the_weights_selected_on_odmd_val(
+    paper_data_dir: Path,
+    v1_data_dir: Path,
+    tmp_path: Path,
+    dbox_scores: Callable[..., dict[str, float]],
+) -> None:
+    """``--config p-z`` on ODMD data runs ``selected-on-odmd-v1/dbox_p-z.pt`` (docs/dbox.md's rows).
+
+    Its selection set, odmd-v1 val, gives the val row of its record; odmd-paper test gives
+    the leaderboard's row (pinned to 4 decimals, 5e-4: the two kernels differ in the last
+    bits). On ODMS data the same name still runs the ODMS-selected file.
+    """
+    odmd_file = dbox.WEIGHTS_DIR / "selected-on-odmd-v1" / "dbox_p-z.pt"
+    record = json.loads(odmd_file.with_suffix(".json").read_text())
+    assert record["val_benchmark"] == "odmd-v1" and record["config"]["name"] == "p-z"
+    val = dbox_scores(v1_data_dir, tmp_path / "val", "odmd-v1", "val", "--config", "p-z")
+    assert all(abs(val[k] - record["val_mean_percent_error"][k]) < 1e-3 for k in val), val
+    stated = {"normal": 15.87, "camera": 16.31, "object": 17.87, "robot": 23.14, "all": 18.30}
+    assert all(abs(val[k] - stated[k]) < 0.0051 for k in stated), val
+    test = dbox_scores(paper_data_dir, tmp_path / "test", "odmd-paper", "test", "--config", "p-z")
+    pinned = {"normal": 16.3515, "camera": 16.6081, "object": 17.9636, "robot": 22.5360, "all": 18.3648}
+    assert set(test) == set(pinned) and all(abs(test[k] - pinned[k]) < 5e-4 for k in pinned), test
+    for benchmark, split, data, weights in (
+        ("odmd-paper", "test", paper_data_dir, "selected-on-odmd-v1/dbox_p-z.pt"),
+        ("odmd-v1", "val", v1_data_dir, "selected-on-odmd-v1/dbox_p-z.pt"),
+        ("odms-detection", "val", paper_data_dir, "dbox_p-z.pt"),
+    ):
+        ex = odmd_bench.load(split, "robot", benchmark, data)
+        assert dbox.provenance(ex, config="p-z")["weights"] == weights, benchmark
+
+
 def test_shipped_p_weights_give_the_numbers_the_readme_states(
     shipped_p_on_paper_test: dict[str, float],
 ) -> None:
