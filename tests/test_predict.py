@@ -6,6 +6,7 @@ import csv
 import dataclasses
 import gzip
 import io
+import math
 import types
 from pathlib import Path
 
@@ -378,6 +379,29 @@ def test_bad_files_and_options_exit_2_without_a_traceback(tmp_path: Path) -> Non
     assert r.exit_code == 2 and "--config" in r.output
 
 
+def _documented_row_matches(row: str, doc: str) -> bool:
+    """Whether ``doc`` shows an output row with the same fields as ``row``, numbers to 1e-9.
+
+    The last digits of a float printed in full depend on the CPU's arithmetic (the docs
+    were written on one machine, the tests run on others), so numbers are compared as
+    numbers, every other field exactly.
+    """
+    fields = row.split(",")
+    for line in doc.splitlines():
+        shown = line.split(",")
+        if len(shown) != len(fields) or shown[0] != fields[0]:
+            continue
+        same = True
+        for a, b in zip(fields, shown, strict=True):
+            try:
+                same &= math.isclose(float(a), float(b), rel_tol=1e-9, abs_tol=1e-12)
+            except ValueError:
+                same &= a == b
+        if same:
+            return True
+    return False
+
+
 def test_the_documented_example_gives_the_documented_depths() -> None:
     example = DOCS / "sequences-example.csv"
     doc = (DOCS / "own-data.md").read_text(encoding="utf-8")
@@ -386,7 +410,9 @@ def test_the_documented_example_gives_the_documented_depths() -> None:
         r = _invoke(["predict", str(example), "--method", method, *size, *extra, "-o", "-"])
         assert r.exit_code == 0, r.output
         rows = r.stdout.splitlines()
-        assert len(rows) == 3 and all(row in doc for row in rows)
+        assert len(rows) == 3 and rows[0] in doc
+        for row in rows[1:]:
+            assert _documented_row_matches(row, doc), row
         if method == "box-ls":
             summary = r.stderr.splitlines()[-4:]
             assert all(line in doc for line in summary)
