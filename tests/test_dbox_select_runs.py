@@ -91,6 +91,31 @@ def test_the_chosen_files_are_copied_byte_for_byte_with_every_candidate_listed(
     dbox.verify_weights(out / "dbox_p-z.robot.pt", require_record=True)
 
 
+def test_an_earlier_selection_is_a_candidate_whose_runs_stay_listed(
+    two_runs: tuple[Path, Path], tmp_path: Path
+) -> None:
+    """New runs added to the shipped choice: the same files as choosing among all runs at once."""
+    a, b = two_runs
+    earlier = tmp_path / "earlier"
+    write_selection(select_runs([a, b], "p-z"), earlier, "select a b")
+    c = _run(tmp_path / "c", 3, 17.2, {"normal": 10.5, "perturb": 19.5, "robot": 9.5, "driving": 23.0})
+    merged, at_once = tmp_path / "merged", tmp_path / "at-once"
+    write_selection(select_runs([earlier, c], "p-z"), merged, "select earlier c")
+    write_selection(select_runs([a, b, c], "p-z"), at_once, "select a b c")
+    for key in ("", *(f".{n}" for n in SETS)):
+        name = f"dbox_p-z{key}"
+        assert (merged / f"{name}.pt").read_bytes() == (at_once / f"{name}.pt").read_bytes(), name
+        got = json.loads((merged / f"{name}.json").read_text())
+        want = json.loads((at_once / f"{name}.json").read_text())
+        listed = [(Path(e["run"]).name, e["val"], e["on"]) for e in got["selected_from"]]
+        assert listed == [(Path(e["run"]).name, e["val"], e["on"]) for e in want["selected_from"]], name
+        assert [e.get("via_select_command") for e in got["selected_from"]] == ["select a b"] * 2 + [None]
+        assert got["command"] == want["command"] and got["select_command"] == "select earlier c"
+    # which is what the shipped-selection test checks on the committed weights
+    record = json.loads((merged / "dbox_p-z.driving.json").read_text())
+    assert record["val_mean_percent_error"]["driving"] == min(e["val"] for e in record["selected_from"])
+
+
 def test_a_damaged_candidate_is_refused_before_anything_is_compared(
     two_runs: tuple[Path, Path], tmp_path: Path
 ) -> None:

@@ -11,7 +11,8 @@ Every candidate is hash-checked against its record before it is compared or copi
 and the chosen files are copied byte for byte (so their recorded ``weights_sha256``
 still holds). The record written beside each chosen file is the run's own, with a
 ``selected_from`` list: every candidate run, its training command and the val score it
-was compared on.
+was compared on. An earlier selection's output folder may be a candidate (new runs
+added to those already chosen among): its runs are listed in its place.
 """
 
 from __future__ import annotations
@@ -140,6 +141,26 @@ def select_runs(runs: Sequence[str | Path], config: str) -> Selection:
     return Selection(config, chosen, candidates)
 
 
+def _listed(cand: Candidate, key: str) -> list[dict[str, Any]]:
+    """How ``cand`` is listed in ``selected_from``: its run, or an earlier selection's runs.
+
+    A candidate folder may itself be the output of ``select-dbox`` (the shipped weights,
+    say, when new runs are added to the ones already chosen among). Its file is then the
+    best of the runs in its own ``selected_from``, which are listed in its place, each
+    with the folder it was reached through (``via``) and that selection's command, so
+    that the record still names every training run and its val score.
+    """
+    earlier = cand.record.get("selected_from")
+    if (
+        isinstance(earlier, list)
+        and earlier
+        and all(isinstance(e, dict) and e.get("on") == key for e in earlier)
+    ):
+        via = {"via": str(cand.run), "via_select_command": cand.record.get("select_command")}
+        return [{**e, **via} for e in earlier]
+    return [{"run": str(cand.run), "command": cand.record.get("command"), "val": cand.score, "on": key}]
+
+
 def write_selection(selection: Selection, out: str | Path, command: str | None = None) -> list[Path]:
     """Copy the chosen checkpoints into ``out`` with their records; return the files written.
 
@@ -161,10 +182,7 @@ def write_selection(selection: Selection, out: str | Path, command: str | None =
         name = f"dbox_{selection.config}.pt" if key == "all" else f"dbox_{selection.config}.{key}.pt"
         target = out / name
         record = dict(cand.record)
-        record["selected_from"] = [
-            {"run": str(c.run), "command": c.record.get("command"), "val": c.score, "on": key}
-            for c in selection.candidates[key]
-        ]
+        record["selected_from"] = [entry for c in selection.candidates[key] for entry in _listed(c, key)]
         record["select_command"] = command
         with atomic_write(target) as fh:
             fh.write(data)
