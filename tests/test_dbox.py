@@ -615,6 +615,19 @@ def shipped_p_on_paper_test(
     return dbox_scores(paper_data_dir, tmp_path_factory.mktemp("dbox"), "odmd-paper", "test")
 
 
+def _odms_means(data_dir: Path, split: str, config: str, selection: str) -> dict[str, float]:
+    """Mean percent error per ODMS-detection set of the shipped ``config`` weights, in Python.
+
+    ``selection="per-set"`` runs each set's own checkpoint (``examples.attrs["set"]``).
+    """
+    return {
+        name: float(
+            np.mean(odmd_bench.percent_error(ex.depth, dbox.predict(ex, config=config, selection=selection)))
+        )
+        for name, ex in odmd_bench.load_split(split, "odms-detection", data_dir).items()
+    }
+
+
 def test_shipped_p_z_weights_give_the_odms_numbers_docs_dbox_states(
     paper_data_dir: Path, tmp_path: Path, dbox_scores: Callable[..., dict[str, float]]
 ) -> None:
@@ -626,10 +639,7 @@ def test_shipped_p_z_weights_give_the_odms_numbers_docs_dbox_states(
     stated = {"normal": 11.90, "perturb": 19.27, "robot": 10.61, "driving": 28.31, "all": 17.52}
     # stated to two decimals; the two kernels differ in the last bits, so not compared rounded
     assert set(scores) == set(stated) and all(abs(scores[k] - stated[k]) < 0.0051 for k in stated), scores
-    per_set = {}
-    for name, ex in odmd_bench.load_split("val", "odms-detection", paper_data_dir).items():
-        pred = dbox.predict(ex, config="p-z", selection="per-set")
-        per_set[name] = float(np.mean(np.abs(pred - ex.depth) / ex.depth * 100))
+    per_set = _odms_means(paper_data_dir, "val", "p-z", "per-set")
     stated = {"normal": 11.07, "perturb": 19.07, "robot": 8.56, "driving": 23.97}
     assert all(abs(per_set[k] - stated[k]) < 0.0051 for k in stated), per_set
 
@@ -653,11 +663,7 @@ def test_shipped_ns_z_and_abs_z_weights_give_the_val_numbers_docs_dbox_states(
     paper_data_dir: Path, config: str, overall: dict[str, float], per_set: dict[str, float]
 ) -> None:
     """docs/dbox.md's val rows of ns-z and abs-z, both selections (the sets their files were chosen on)."""
-    got: dict[str, dict[str, float]] = {"overall": {}, "per-set": {}}
-    for name, ex in odmd_bench.load_split("val", "odms-detection", paper_data_dir).items():
-        for selection in got:
-            pred = dbox.predict(ex, config=config, selection=selection)
-            got[selection][name] = float(np.mean(np.abs(pred - ex.depth) / ex.depth * 100))
+    got = {selection: _odms_means(paper_data_dir, "val", config, selection) for selection in dbox.SELECTIONS}
     # stated to two decimals; the two kernels differ in the last bits, so not compared rounded
     assert all(abs(got["overall"][k] - overall[k]) < 0.0051 for k in overall), got["overall"]
     assert all(abs(got["per-set"][k] - per_set[k]) < 0.0051 for k in per_set), got["per-set"]
@@ -675,10 +681,7 @@ def test_shipped_per_set_z_weights_meet_the_papers_table_2_row_on_test(
     paper_data_dir: Path, config: str, stated: dict[str, float], paper_all: float
 ) -> None:
     """docs/dbox.md's per-set test rows of the z configurations, at most the paper's Table 2 All."""
-    got = {}
-    for name, ex in odmd_bench.load_split("test", "odms-detection", paper_data_dir).items():
-        pred = dbox.predict(ex, config=config, selection="per-set")
-        got[name] = float(np.mean(np.abs(pred - ex.depth) / ex.depth * 100))
+    got = _odms_means(paper_data_dir, "test", config, "per-set")
     got["all"] = float(np.mean(list(got.values())))
     assert all(abs(got[k] - stated[k]) < 0.0051 for k in stated), got
     assert got["all"] <= paper_all, got
@@ -706,6 +709,12 @@ def test_p_z_on_odmd_data_runs_the_weights_selected_on_odmd_val(
     test = dbox_scores(paper_data_dir, tmp_path / "test", "odmd-paper", "test", "--config", "p-z")
     pinned = {"normal": 16.3515, "camera": 16.6081, "object": 17.9636, "robot": 22.5360, "all": 18.3648}
     assert set(test) == set(pinned) and all(abs(test[k] - pinned[k]) < 5e-4 for k in pinned), test
+    # docs/dbox.md's comparison row: the ODMS-selected file on the same sets, by --weights
+    odms = dbox_scores(
+        paper_data_dir, tmp_path / "odms", "odmd-paper", "test", "--weights", str(dbox.weights_path("p-z"))
+    )
+    stated = {"normal": 17.88, "camera": 23.29, "object": 20.21, "robot": 24.29, "all": 21.42}
+    assert all(abs(odms[k] - stated[k]) < 0.0051 for k in stated), odms
     for benchmark, split, data, weights in (
         ("odmd-paper", "test", paper_data_dir, "selected-on-odmd-v1/dbox_p-z.pt"),
         ("odmd-v1", "val", v1_data_dir, "selected-on-odmd-v1/dbox_p-z.pt"),
