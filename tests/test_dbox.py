@@ -724,6 +724,26 @@ def test_p_z_on_odmd_data_runs_the_weights_selected_on_odmd_val(
         assert dbox.provenance(ex, config="p-z")["weights"] == weights, benchmark
 
 
+@pytest.mark.parametrize(
+    ("config", "stated"),
+    [
+        ("ns-z", {"normal": 33.68, "camera": 37.34, "object": 44.40, "robot": 58.34, "all": 43.44}),
+        ("abs-z", {"normal": 9.64, "camera": 9.67, "object": 10.49, "robot": 18.56, "all": 12.09}),
+    ],
+)
+def test_ns_z_and_abs_z_by_name_on_odmd_data_give_the_rows_docs_dbox_states(
+    paper_data_dir: Path,
+    tmp_path: Path,
+    dbox_scores: Callable[..., dict[str, float]],
+    config: str,
+    stated: dict[str, float],
+) -> None:
+    """``--config ns-z`` / ``abs-z`` on ``odmd-paper`` test: docs/dbox.md's rows (ODMS-selected files)."""
+    got = dbox_scores(paper_data_dir, tmp_path, "odmd-paper", "test", "--config", config)
+    assert set(got) == set(stated)
+    assert all(abs(got[k] - stated[k]) < 0.0051 for k in stated), got
+
+
 def test_shipped_p_weights_give_the_numbers_the_readme_states(
     shipped_p_on_paper_test: dict[str, float],
 ) -> None:
