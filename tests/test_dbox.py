@@ -734,6 +734,38 @@ def test_p_z_on_odmd_data_runs_the_weights_selected_on_odmd_val(
         assert dbox.provenance(ex, config="p-z")["weights"] == weights, benchmark
 
 
+def test_p_z_per_set_on_odmd_data_runs_the_files_selected_on_each_odmd_val_set(
+    paper_data_dir: Path,
+    v1_data_dir: Path,
+    tmp_path: Path,
+    dbox_scores: Callable[..., dict[str, float]],
+) -> None:
+    """``--config p-z --selection per-set`` on ODMD data: ``selected-on-odmd-v1/dbox_p-z.<set>.pt``.
+
+    Each file gives on its own set of odmd-v1 val what its record states (the selection);
+    odmd-paper test gives the leaderboard's row (docs/dbox.md), pinned to 4 decimals.
+    """
+    folder = dbox.WEIGHTS_DIR / "selected-on-odmd-v1"
+    val = dbox_scores(
+        v1_data_dir, tmp_path / "val", "odmd-v1", "val", "--config", "p-z", "--selection", "per-set"
+    )
+    for name in ("normal", "camera", "object", "robot"):
+        record = json.loads((folder / f"dbox_p-z.{name}.json").read_text())
+        assert record["selection"] == {"kind": "per-set", "on": name, "run_on": name}, record["selection"]
+        assert record["val_benchmark"] == "odmd-v1"
+        assert abs(val[name] - record["val_mean_percent_error"][name]) < 1e-3, (name, val)
+    stated = {"normal": 13.18, "camera": 12.94, "object": 15.35, "robot": 21.24, "all": 15.68}
+    assert all(abs(val[k] - stated[k]) < 0.0051 for k in stated), val
+    test = dbox_scores(
+        paper_data_dir, tmp_path / "test", "odmd-paper", "test", "--config", "p-z", "--selection", "per-set"
+    )
+    pinned = {"normal": 13.5033, "camera": 13.2145, "object": 15.3559, "robot": 19.7652, "all": 15.4597}
+    assert set(test) == set(pinned) and all(abs(test[k] - pinned[k]) < 5e-4 for k in pinned), test
+    # per set it is never worse on val than the one network selected overall (its rule)
+    overall = json.loads((folder / "dbox_p-z.json").read_text())["val_mean_percent_error"]
+    assert all(val[k] <= overall[k] + 1e-6 for k in stated), (val, overall)
+
+
 @pytest.mark.parametrize(
     ("config", "stated"),
     [

@@ -154,8 +154,31 @@ def test_weights_selected_on_the_datas_benchmark_run_on_that_benchmark(
         report = dbox.provenance(ex, config="p-z")
         assert report["weights"] == "selected-on-odmd-v1/dbox_p-z.pt", report
         np.testing.assert_array_equal(dbox.predict(ex, config="p-z"), dbox.predict(ex, weights=odmd_file))
-        # per-set selection is the ODMS protocol: the ODMS-val per-set file, as before
-        assert dbox.provenance(ex, config="p-z", selection="per-set")["weights"] == "dbox_p-z.robot.pt"
+        # per-set files are those beside the overall file the data select: none here, and
+        # the ODMS-selected file of a set with the same name is not run in their place
+        with pytest.raises(
+            DataError,
+            match=r"no per-set checkpoint for set 'robot' \(per-set checkpoints in selected-on-odmd-v1/: none\)",
+        ):
+            dbox.predict(ex, config="p-z", selection="per-set")
+    odmd_robot = _write_checkpoint(tmp_path / "selected-on-odmd-v1" / "dbox_p-z.robot.pt", 5)
+    assert dbox.shipped() == {"p-z": ["robot"]}  # the configuration's own val selects shipped()
+    for benchmark in ("odmd-paper", "odmd-v1"):
+        ex = _examples(30, "odmd", 8, benchmark=benchmark, set="robot")
+        report = dbox.provenance(ex, config="p-z", selection="per-set")
+        assert report["weights"] == "selected-on-odmd-v1/dbox_p-z.robot.pt", report
+        np.testing.assert_array_equal(
+            dbox.predict(ex, config="p-z", selection="per-set"), dbox.predict(ex, weights=odmd_robot)
+        )
+        with pytest.raises(
+            DataError, match=r"set 'camera' \(per-set checkpoints in selected-on-odmd-v1/: robot\)"
+        ):
+            dbox.predict(
+                _examples(5, "odmd", 12, benchmark=benchmark, set="camera"), config="p-z", selection="per-set"
+            )
+    # ODMS data keep the ODMS-selected per-set file
+    ex = _examples(30, "odms", 9, benchmark="odms-detection", set="robot")
+    assert dbox.provenance(ex, config="p-z", selection="per-set")["weights"] == "dbox_p-z.robot.pt"
     for attrs in ({"benchmark": "odms-detection"}, {}):
         ex = _examples(30, "odms", 9, **attrs)
         assert dbox.provenance(ex, config="p-z")["weights"] == "dbox_p-z.pt"

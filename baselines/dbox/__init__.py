@@ -5,13 +5,15 @@
 ``abs-z`` for z-axis motion only). The default follows the data (:func:`default_config`):
 ``p-z`` for the ``odms-detection`` benchmark or any z-only camera motion, ``p`` otherwise,
 so the x,y,z model never runs on z-only data unless asked for by name.
-``selection="per-set"`` runs the paper's per-set selection (one checkpoint per ODMS set,
+``selection="per-set"`` runs the paper's per-set selection (one checkpoint per set,
 each chosen on that set's val score) on the set named in ``examples.attrs["set"]``.
 A configuration's weights are selected on the val split of the benchmark family they
-run on when such weights ship: ``p-z`` (selected on ODMS-detection val) also ships a
-checkpoint of the same training runs selected on ODMD val, ``weights/selected-on-odmd-v1/``,
-which runs on the ODMD benchmarks (the paper selects its Table 1 rows on ODMD val, its
-Table 2 rows on ODMS val).
+run on when such weights ship: ``p-z`` (selected on ODMS-detection val) also ships
+checkpoints of the same kind of training runs selected on ODMD val,
+``weights/selected-on-odmd-v1/`` (overall and one per ODMD set), which run on the ODMD
+benchmarks (the paper selects its Table 1 rows on ODMD val, overall; its Table 2 rows on
+ODMS val, per set). Per-set files are always those beside the overall file the data's
+benchmark selects.
 ``predict(examples, weights=FILE)`` runs any checkpoint in the original release's layout
 (a state dict with keys ``W``, ``U``, ``bias``, ``V``, ``linears.0.weight`` ...
 ``linears.6.bias``), such as the release's ``DBox_pretrained_paper.pt``.
@@ -96,18 +98,27 @@ def per_set_path(weights: str | os.PathLike[str], set_name: str) -> Path:
     return path.with_name(f"{path.stem}.{set_name}{path.suffix}")
 
 
+def per_set_names(overall: Path, config: str) -> list[str]:
+    """The sets with a per-set checkpoint beside ``overall`` (``dbox_<config>.<set>.pt``)."""
+    prefix = f"dbox_{config}."
+    return sorted(
+        p.name[len(prefix) : -len(".pt")]
+        for p in overall.parent.glob(f"{prefix}*.pt")
+        if "." not in p.name[len(prefix) : -len(".pt")]
+    )
+
+
 def shipped() -> dict[str, list[str]]:
-    """The shipped configurations and, for each, the sets it has per-set checkpoints for."""
-    found: dict[str, list[str]] = {}
-    for config in CONFIGS:
-        if weights_path(config).is_file():
-            prefix = f"dbox_{config}."
-            found[config] = sorted(
-                p.name[len(prefix) : -len(".pt")]
-                for p in WEIGHTS_DIR.glob(f"{prefix}*.pt")
-                if "." not in p.name[len(prefix) : -len(".pt")]
-            )
-    return found
+    """The shipped configurations and, for each, the sets it has per-set checkpoints for.
+
+    These are the checkpoints selected on the configuration's own val benchmark
+    (:data:`VAL_BENCHMARK`); those selected on another sit in ``selected-on-<benchmark>/``.
+    """
+    return {
+        config: per_set_names(weights_path(config), config)
+        for config in CONFIGS
+        if weights_path(config).is_file()
+    }
 
 
 def is_z_only(examples: Examples) -> bool:
@@ -357,16 +368,19 @@ def resolve_weights(
         )
     path = weights_path(name)
     on = selection_benchmark(examples)
-    if selection == "overall" and weights_path(name, selected_on=on).is_file():
+    if weights_path(name, selected_on=on).is_file():
         path = weights_path(name, selected_on=on)  # selected on the val of the data's benchmark
     if selection == "per-set":
-        if str(set_name) not in available[name]:
-            sets = ", ".join(available[name]) or "none"
+        # the per-set files selected on the same val as the overall one, beside it
+        sets = per_set_names(path, name)
+        if str(set_name) not in sets:
+            where = path.parent.relative_to(WEIGHTS_DIR).as_posix()
             raise DataError(
                 f"DBox configuration {name!r} has no per-set checkpoint for set {set_name!r} "
-                f"(per-set checkpoints: {sets}); use selection 'overall'"
+                f"(per-set checkpoints{'' if where == '.' else ' in ' + where + '/'}: "
+                f"{', '.join(sets) or 'none'}); use selection 'overall'"
             )
-        path = weights_path(name, str(set_name))
+        path = per_set_path(path, str(set_name))
     return path, {"config": name, "selection": selection, "weights": path.relative_to(WEIGHTS_DIR).as_posix()}
 
 
