@@ -305,3 +305,22 @@ def test_every_shipped_checkpoint_scores_the_val_numbers_its_record_states(paper
                 assert got == pytest.approx(stated, abs=2e-3), (config, selection, name)
                 checked += 1
     assert checked >= 8
+
+
+def test_docs_state_how_many_runs_each_z_selection_chose_among() -> None:
+    """docs/dbox.md's count of runs per z configuration is the count in the shipped records.
+
+    The per-set search is wider than the paper's (one run), and how much wider is part of
+    reading the numbers: the statement must not go stale when runs are added.
+    """
+    import re
+
+    docs = (Path(__file__).resolve().parents[1] / "docs" / "dbox.md").read_text(encoding="utf-8")
+    text = " ".join(docs.split())
+    m = re.search(r"\((\d+) runs for `p-z`, (\d+) for `abs-z`, (\d+) for `ns-z`;", text)
+    assert m, "docs/dbox.md no longer states the run counts of the z selections"
+    stated = dict(zip(("p-z", "abs-z", "ns-z"), map(int, m.groups()), strict=True))
+    for config, n in stated.items():
+        for name in [None, *dbox.shipped()[config]]:
+            record = json.loads(dbox.weights_path(config, name).with_suffix(".json").read_text())
+            assert len(record["selected_from"]) == n, (config, name)
