@@ -10,6 +10,7 @@ Importing the package loads numpy and h5py only; torch is needed by DBox alone.
 
 from odmd_bench.data.atomic import atomic_path, atomic_write
 from odmd_bench.data.config import PRESETS, CameraConfig, GeneratorConfig
+from odmd_bench.data.describe import describe
 from odmd_bench.data.examples import Examples, fill_missing, nearest_detected_index
 from odmd_bench.data.generator import GENERATOR_VERSION, generate, stream
 from odmd_bench.data.hashing import file_sha256
@@ -59,6 +60,7 @@ __all__ = [
     "atomic_path",
     "atomic_write",
     "all_sets_mean",
+    "describe",
     "ensure_generated",
     "evaluate",
     "file_sha256",

@@ -79,11 +79,22 @@ def import_(source: Path, benchmark: str | None, data_dir: Path | None, allow_un
 @click.command()
 @click.argument("file", type=click.Path(path_type=Path))
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
-def info(file: Path, as_json: bool) -> None:
+@click.option(
+    "--stats",
+    is_flag=True,
+    help="Also read every set (verified against its hashes) and give the ranges of depth Z_n, "
+    "camera travel L = |c_1 - c_n| and Z_n / L, the share of forward and of x,y camera motion, "
+    "and missing detections.",
+)
+def info(file: Path, as_json: bool, stats: bool) -> None:
     """Show what an odmd-bench HDF5 file holds."""
-    from odmd_bench.data.io import file_summary
+    from odmd_bench.data.describe import describe, format_description
+    from odmd_bench.data.io import file_summary, read_set
 
     summary = file_summary(file)
+    if stats:
+        for name, s in summary["sets"].items():
+            s["stats"] = describe(read_set(file, name))
     if as_json:
         click.echo(json.dumps(summary, indent=2, default=str))
         return
@@ -100,6 +111,10 @@ def info(file: Path, as_json: bool) -> None:
             click.echo(f"  config: {a['config']}")
         for arr, (dtype, shape) in s["arrays"].items():
             click.echo(f"  array {arr}: {dtype} {tuple(shape)}")
+    if stats:
+        for name, s in summary["sets"].items():
+            for line in format_description(name, s["stats"]):
+                click.echo(line)
 
 
 @click.command(name="data-dir")
