@@ -142,3 +142,18 @@ def test_docs_dbox_table_of_z_n_over_l_is_what_the_commands_give(paper_data_dir:
         r = d["depth_over_travel"]
         got = (round(r["p5"], 2), round(r["median"], 2), round(r["p95"], 2), round(100 * d["forward"]))
         assert got == rows[label], (label, got, rows[label])
+
+
+def test_docs_own_data_coverage_numbers() -> None:
+    """docs/own-data.md's Z_n / L of the two example sequences and of the p-z training stream."""
+    docs = Path(__file__).resolve().parents[1] / "docs"
+    text = (docs / "own-data.md").read_text(encoding="utf-8")
+    seqs = odmd_bench.read_sequences(docs / "sequences-example.csv", image_size=(4032, 3024))
+    medians = [odmd_bench.describe(ex)["depth_over_travel"]["median"] for _, ex in seqs.groups]
+    train = odmd_bench.describe(odmd_bench.generate(100000, "odms", "both", rng=0))["depth_over_travel"]["p5"]
+    line = f"# {medians[0]:.3f} trash can, {medians[1]:.3f} bird house"
+    assert line in text, line
+    assert (
+        f"# {train:.3f}" in text
+        and f"{medians[1]:.3f} is at the\n5th percentile of what `p-z` trains on ({train:.3f})" in text
+    )
