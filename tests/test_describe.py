@@ -16,6 +16,14 @@ from odmd_bench.cli.main import cli
 from odmd_bench.data.describe import describe, format_description
 from odmd_bench.data.io import write_sets
 
+DOCS = Path(__file__).resolve().parents[1] / "docs"
+
+
+@pytest.fixture(scope="module")
+def pz_training() -> dict:
+    """describe() of the p-z training stream as the docs compute it (100,000 examples, seed 0)."""
+    return describe(odmd_bench.generate(100000, "odms", "both", rng=0))
+
 
 def _hand_made() -> Examples:
     """Four examples of three observations whose every summary number is known by hand."""
@@ -112,11 +120,13 @@ def test_info_stats_refuses_an_altered_set(tmp_path: Path) -> None:
     assert r.exit_code == 2 and "object" in r.stderr and "Traceback" not in r.output, r.output
 
 
-def test_docs_dbox_table_of_z_n_over_l_is_what_the_commands_give(paper_data_dir: Path) -> None:
+def test_docs_dbox_table_of_z_n_over_l_is_what_the_commands_give(
+    paper_data_dir: Path, pz_training: dict
+) -> None:
     """docs/dbox.md's table of Z_n / L (training streams against the val sets) holds."""
     import re
 
-    docs = (Path(__file__).resolve().parents[1] / "docs" / "dbox.md").read_text(encoding="utf-8")
+    docs = (DOCS / "dbox.md").read_text(encoding="utf-8")
     rows = {}
     for line in docs.splitlines():
         m = re.match(r"\| (.+?) \| ([\d.]+) \| ([\d.]+) \| ([\d.]+) \| (\d+) % \|$", line)
@@ -125,32 +135,28 @@ def test_docs_dbox_table_of_z_n_over_l_is_what_the_commands_give(paper_data_dir:
     val = odmd_bench.load_split("val", "odms-detection", paper_data_dir)
     paper_val = odmd_bench.load_split("val", "odmd-paper", paper_data_dir)
     sources = {
-        "`p-z` training (preset `odms`, perturbation `both`)": odmd_bench.generate(
-            100000, "odms", "both", rng=0
+        "`p-z` training (preset `odms`, perturbation `both`)": pz_training,
+        "ODMS-detection val normal": describe(val["normal"]),
+        "ODMS-detection val robot": describe(val["robot"]),
+        "ODMS-detection val driving": describe(val["driving"]),
+        "`p` training (the same command with preset `odmd`), for comparison": describe(
+            odmd_bench.generate(100000, "odmd", "both", rng=0)
         ),
-        "ODMS-detection val normal": val["normal"],
-        "ODMS-detection val robot": val["robot"],
-        "ODMS-detection val driving": val["driving"],
-        "`p` training (the same command with preset `odmd`), for comparison": odmd_bench.generate(
-            100000, "odmd", "both", rng=0
-        ),
-        "`odmd-paper` val robot": paper_val["robot"],
+        "`odmd-paper` val robot": describe(paper_val["robot"]),
     }
     assert set(rows) == set(sources), sorted(rows)
-    for label, ex in sources.items():
-        d = describe(ex)
+    for label, d in sources.items():
         r = d["depth_over_travel"]
         got = (round(r["p5"], 2), round(r["median"], 2), round(r["p95"], 2), round(100 * d["forward"]))
         assert got == rows[label], (label, got, rows[label])
 
 
-def test_docs_own_data_coverage_numbers() -> None:
+def test_docs_own_data_coverage_numbers(pz_training: dict) -> None:
     """docs/own-data.md's Z_n / L of the two example sequences and of the p-z training stream."""
-    docs = Path(__file__).resolve().parents[1] / "docs"
-    text = (docs / "own-data.md").read_text(encoding="utf-8")
-    seqs = odmd_bench.read_sequences(docs / "sequences-example.csv", image_size=(4032, 3024))
+    text = (DOCS / "own-data.md").read_text(encoding="utf-8")
+    seqs = odmd_bench.read_sequences(DOCS / "sequences-example.csv", image_size=(4032, 3024))
     medians = [odmd_bench.describe(ex)["depth_over_travel"]["median"] for _, ex in seqs.groups]
-    train = odmd_bench.describe(odmd_bench.generate(100000, "odms", "both", rng=0))["depth_over_travel"]["p5"]
+    train = pz_training["depth_over_travel"]["p5"]
     line = f"# {medians[0]:.3f} trash can, {medians[1]:.3f} bird house"
     assert line in text, line
     assert (

@@ -66,20 +66,19 @@ def describe(examples: Examples) -> dict[str, Any]:
     """
     n = len(examples)
     camera = np.asarray(examples.camera, dtype=np.float64)
-    first = camera[:, 0, :] - camera[:, -1, :] if n else np.zeros((0, 3))
+    offsets = camera - camera[:, -1:, :]  # relative to the last observation, whatever the origin
+    first = offsets[:, 0, :]  # c_1 - c_n
     travel = np.linalg.norm(first, axis=1)
     depth = np.asarray(examples.depth, dtype=np.float64)
     moved = travel > 0
-    with np.errstate(divide="ignore", invalid="ignore"):
-        ratio = np.where(moved, depth / np.where(moved, travel, 1.0), np.nan)
-    offsets = camera - camera[:, -1:, :] if n else np.zeros((0, 1, 3))
-    z_max = np.abs(offsets[..., 2]).max(axis=1) if n else np.zeros(0)
-    xy_max = np.abs(offsets[..., :2]).max(axis=(1, 2)) if n else np.zeros(0)
+    ratio = np.where(moved, depth / np.where(moved, travel, 1.0), np.nan)
+    z_max = np.abs(offsets[..., 2]).max(axis=1)
+    xy_max = np.abs(offsets[..., :2]).max(axis=(1, 2))
     detected = np.asarray(examples.detected, dtype=bool)
     n_moved = int(moved.sum())
     return {
         "n": n,
-        "n_obs": int(camera.shape[1]) if camera.ndim == 3 else 0,
+        "n_obs": int(camera.shape[1]),
         "depth": _range(depth),
         "camera_travel": _range(travel[moved]),
         "depth_over_travel": _range(ratio),
