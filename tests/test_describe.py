@@ -56,14 +56,6 @@ def test_every_number_of_a_hand_made_set() -> None:
     json.dumps(d)  # JSON-ready
 
 
-def test_camera_offsets_need_not_be_relative_to_the_last_observation() -> None:
-    ex = _hand_made()
-    shifted = Examples(
-        boxes=ex.boxes, detected=ex.detected, camera=ex.camera + np.array([1.0, -2.0, 3.0]), depth=ex.depth
-    )
-    assert describe(shifted) == describe(ex)
-
-
 def test_an_empty_set_and_a_set_without_motion_or_depth() -> None:
     empty = Examples(
         boxes=np.zeros((0, 10, 4)), detected=np.zeros((0, 10), bool), camera=np.zeros((0, 10, 3))

@@ -18,6 +18,7 @@ import odmd_bench
 from odmd_bench import DataError, Examples, UsageError, ValidationError, methods, predict
 from odmd_bench.cli.main import cli
 from odmd_bench.data import sequences
+from odmd_bench.data.pixels import boxes_to_corners
 from odmd_bench.evaluation.metrics import set_metrics
 
 SIZE = (640, 480)
@@ -82,6 +83,35 @@ def test_examples_take_no_depth() -> None:
     ex = odmd_bench.generate(3, rng=0)
     bare = Examples(ex.boxes, ex.detected, ex.camera)
     assert bare.depth.shape == (3,) and np.isnan(bare.depth).all()
+
+
+def test_examples_refuse_a_camera_not_relative_to_the_last_observation() -> None:
+    ex = odmd_bench.generate(6, "odms", "normal", rng=0)
+    world = ex.camera + np.array([2.0, 1.0, 3.0])  # a fixed frame with another origin
+    with pytest.raises(DataError) as info:
+        Examples(ex.boxes, ex.detected, world, ex.depth)
+    text = info.value.render()
+    assert "6 example(s) have a nonzero last row" in text and "from_pixels" in text
+    one = ex.camera.copy()
+    one[4, -1, 0] = 1e-9
+    with pytest.raises(DataError, match=r"1 example\(s\) .*first: \[4\]"):
+        Examples(ex.boxes, ex.detected, one, ex.depth)
+
+
+@pytest.mark.parametrize("name", ["box-ls", "robust", "dbox"])
+def test_from_pixels_gives_the_same_depths_for_any_origin(name: str) -> None:
+    # Robust and DBox read positions relative to the last observation; from_pixels makes them so.
+    if name == "dbox":
+        pytest.importorskip("torch")
+    ex = odmd_bench.generate(20, "odmd", "camera", rng=3)
+    size = (ex.attrs["image_width"], ex.attrs["image_height"])
+    corners = boxes_to_corners(ex.boxes, ex.detected, size)
+    keep = {k: ex.attrs[k] for k in ("fx", "fy", "cx", "cy", "image_width", "image_height")}
+    here = Examples.from_pixels(corners, ex.camera, size, ex.depth, attrs=keep)
+    world = Examples.from_pixels(corners, ex.camera + np.array([2.0, 1.0, 3.0]), size, ex.depth, attrs=keep)
+    np.testing.assert_allclose(world.camera, here.camera, atol=1e-12)
+    method = methods.load(name)
+    np.testing.assert_allclose(method.predict(world), method.predict(here), rtol=1e-6)
 
 
 def test_from_pixels_names_every_bad_array() -> None:

@@ -68,6 +68,16 @@ class Examples:
                     problems.append(f"{name} must be {shape}, got {got}")
             if self.observation_depth is not None and self.observation_depth.shape != (n, n_obs):
                 problems.append(f"observation_depth must be {(n, n_obs)}, got {self.observation_depth.shape}")
+            if not problems and n_obs:
+                last = np.asarray(self.camera[:, -1, :])
+                moved = np.flatnonzero((np.isfinite(last) & (last != 0)).any(axis=1))
+                if moved.size:
+                    problems.append(
+                        "camera must be relative to the last observation (its last row "
+                        f"zero), but {moved.size} example(s) have a nonzero last row "
+                        f"(first: {moved[:5].tolist()}); subtract camera[:, -1:] or build "
+                        "them with Examples.from_pixels, which takes any origin"
+                    )
         if problems:
             raise DataError("inconsistent example arrays", problems)
 
