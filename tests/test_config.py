@@ -86,3 +86,42 @@ def test_partial_file_takes_defaults_and_bad_files_are_clear(tmp_path) -> None:
 def test_unknown_preset() -> None:
     with pytest.raises(ConfigError, match="odmd, odms"):
         get_preset("kitti")
+
+
+def test_a_yaml_alias_bomb_is_refused_before_it_expands(tmp_path) -> None:
+    # 9 levels of 9 aliases: 387 million strings if expanded (the message would print them).
+    levels = ['&a0 ["lol", "lol", "lol", "lol", "lol", "lol", "lol", "lol", "lol"]']
+    levels += [f"&a{i} [{', '.join([f'*a{i - 1}'] * 9)}]" for i in range(1, 9)]
+    p = tmp_path / "bomb.yaml"
+    p.write_text("\n".join(f"k{i}: {level}" for i, level in enumerate(levels)) + "\nn_obs: *a8\n")
+    with pytest.raises(ConfigError, match="anchors"):
+        GeneratorConfig.from_file(p)
+
+
+def test_a_config_file_names_every_problem(tmp_path) -> None:
+    p = tmp_path / "c.yaml"
+    p.write_text(
+        "n_obs: 1\nobject_size: [0.2, 0.1]\ninitial_depth: [-1, 1]\n1: 2\nfoo: 3\ncamera: {fx: -5}\n"
+    )
+    with pytest.raises(ConfigError) as info:
+        GeneratorConfig.from_file(p)
+    text = info.value.render()
+    assert "key 1 is not a name" in text and "unknown key 'foo'" in text  # mixed keys: no TypeError
+    p.write_text("n_obs: 1\nobject_size: [0.2, 0.1]\ninitial_depth: [-1, 1]\ncamera: {fx: -5}\n")
+    with pytest.raises(ConfigError) as info:
+        GeneratorConfig.from_file(p)
+    text = info.value.render()
+    for words in (
+        "n_obs: expected an integer from 2 to 1000",
+        "object_size: need",
+        "initial_depth: need",
+        "fx/fy",
+    ):
+        assert words in text
+    p.write_bytes(b"n_obs: \xff\n")
+    with pytest.raises(ConfigError, match="not UTF-8"):
+        GeneratorConfig.from_file(p)
+    with pytest.raises(ConfigError, match="n_obs: expected an integer from 2 to 1000, got 1000000000"):
+        GeneratorConfig.from_dict({"n_obs": 10**9})
+    with pytest.raises(ConfigError, match="too large to print"):
+        GeneratorConfig.from_dict({"n_obs": 10**5000})

@@ -116,3 +116,27 @@ def test_reimport_keeps_other_sets(original_release, tmp_path) -> None:
     import_release(original_release / "odmd" / "test" / "test_robot.pk", tmp_path)
     sets = odmd_bench.load_split("test", "odmd-paper", tmp_path, sets=["normal", "robot"])
     assert set(sets) == {"normal", "robot"}
+
+
+@pytest.mark.parametrize(
+    ("key", "value", "words"),
+    [
+        ("fx_norm", "x", "fx_norm = 'x' does not match the HSR camera"),
+        ("fx_norm", [1, 2], "fx_norm = [1, 2] does not match the HSR camera"),
+        ("image_dim", ["abc", 640], "image_dim = ['abc', 640] is not two positive whole numbers"),
+        ("image_dim", [float("nan"), 640], "image_dim = [nan, 640] is not two positive whole numbers"),
+    ],
+)
+def test_malformed_metadata_of_an_unknown_file_is_refused(
+    original_release, tmp_path, key: str, value: object, words: str
+) -> None:
+    obj = safe_unpickle(
+        (original_release / "odmd" / "test" / "test_normal.pk").read_bytes(), "test_normal.pk"
+    )
+    obj["bb"][key] = value
+    path = tmp_path / "test_normal.pk"
+    path.write_bytes(pickle.dumps(obj, protocol=3))
+    with pytest.raises(ImportRefused, match="nothing was written") as info:
+        import_release(path, tmp_path / "data", allow_unknown=True)
+    assert words in info.value.render()
+    assert not (tmp_path / "data").exists()

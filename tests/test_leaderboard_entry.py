@@ -14,9 +14,9 @@ from pathlib import Path
 import pytest
 import yaml
 
+from odmd_bench import documents
 from odmd_bench import leaderboard as lb
 from odmd_bench.errors import ValidationError
-from odmd_bench.leaderboard import safeyaml
 from odmd_bench.leaderboard.entry import MAX_LENGTHS, EntryMeta
 from odmd_bench.leaderboard.rules import latest_date
 
@@ -160,21 +160,21 @@ def test_an_alias_bomb_is_a_clear_error_without_expanding(tmp_path: Path) -> Non
     ],
 )
 def test_unsafe_yaml_is_refused_by_line_and_reason(doc: str, expected: str) -> None:
-    with pytest.raises(safeyaml.DocumentError, match=None) as info:
-        safeyaml.load_document(doc.encode(), "yaml")
+    with pytest.raises(documents.DocumentError, match=None) as info:
+        documents.load_document(doc.encode(), "yaml")
     assert expected in str(info.value) and len(str(info.value)) < 200
 
 
 def test_deep_json_is_refused_without_a_recursion_error() -> None:
     for depth in (12, 30_000):
-        with pytest.raises(safeyaml.DocumentError, match="nested more than 8 levels deep"):
-            safeyaml.load_document(b"[" * depth + b"]" * depth, "json")
+        with pytest.raises(documents.DocumentError, match="nested more than 8 levels deep"):
+            documents.load_document(b"[" * depth + b"]" * depth, "json")
 
 
 def test_plain_yaml_and_json_are_read() -> None:
-    assert safeyaml.load_document(b"a: [1, {b: x}]\n", "yaml") == {"a": [1, {"b": "x"}]}
-    assert safeyaml.load_document(b'{"a": [1]}', "json") == {"a": [1]}
-    assert safeyaml.load_document(b"", "yaml") is None
+    assert documents.load_document(b"a: [1, {b: x}]\n", "yaml") == {"a": [1, {"b": "x"}]}
+    assert documents.load_document(b'{"a": [1]}', "json") == {"a": [1]}
+    assert documents.load_document(b"", "yaml") is None
 
 
 def test_a_mapping_value_is_shown_by_its_kind_never_expanded(tmp_path: Path) -> None:

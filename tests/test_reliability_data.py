@@ -501,3 +501,63 @@ def test_text_is_written_as_utf8_whatever_the_locale(tmp_path: Path) -> None:
     env = {**os.environ, "LC_ALL": "C", "LANG": "C", "PYTHONUTF8": "0", "PYTHONCOERCECLOCALE": "0"}
     subprocess.run([sys.executable, "-X", "utf8=0", "-c", code], env=env, check=True)
     assert out.read_bytes() == "≥ 5".encode()
+
+
+def test_file_attributes_other_than_identity_reach_no_set(paper_copy: Path) -> None:
+    # No hash covers the file's own attributes: an intrinsics injected there must not give
+    # the uncalibrated ODMS sets a camera, nor relabel the data's version.
+    path = set_file("odms-detection", "val", paper_copy)
+    with h5py.File(path, "r+") as f:
+        f.attrs.update({"fx": 205.5, "fy": 205.5, "cx": 320.5, "cy": 240.5, "generator_version": 99})
+    ex = odmd_bench.load("val", "normal", "odms-detection", paper_copy)
+    assert "fx" not in ex.attrs and "generator_version" not in ex.attrs
+    with pytest.raises(DataError, match="no camera intrinsics"):
+        ex.intrinsics()
+    assert ex.attrs["benchmark"] == "odms-detection" and ex.attrs["split"] == "val"
+
+
+def test_an_array_larger_than_the_set_is_refused_before_it_is_read(v1: Path, tmp_path: Path) -> None:
+    d = _copy(v1, tmp_path / "d")
+    path = set_file("odmd-v1", "val", d)
+    with h5py.File(path, "r+") as f:  # 80 TB of zeros, a few hundred bytes on disk
+        f["normal"].create_dataset("zzz", shape=(10**13,), dtype="f8", chunks=(10**6,), compression="gzip")
+        f["camera"].create_group("sub")
+    with pytest.raises(DataError, match="is not a set of examples") as info:
+        read_set(path, "normal")
+    assert (
+        "'zzz' has shape (10000000000000,); every array has one row per example (2400)" in info.value.render()
+    )
+    with pytest.raises(DataError, match="'sub' is a Group, not an array"):
+        read_set(path, "camera")
+    _clear_error(_cli("info", "--stats", str(path)), "is not a set of examples")
+
+
+def test_a_pipe_in_a_data_file_place_is_an_error_not_a_wait(tmp_path: Path) -> None:
+    path = set_file("odmd-v1", "val", tmp_path)
+    path.parent.mkdir(parents=True)
+    os.mkfifo(path)
+    with pytest.raises(DataError, match="not a regular file"):
+        read_set(path, "normal")  # h5py would wait for a writer forever
+    _clear_error(_cli("info", str(path)), "not a regular file")
+
+
+def test_generating_more_than_memory_holds_is_a_usage_error() -> None:
+    with pytest.raises(odmd_bench.UsageError, match=r"do not fit in memory; generate fewer at a time"):
+        odmd_bench.generate(10**12)
+
+
+def test_a_fix_given_by_the_caller_is_kept_as_written() -> None:
+    from odmd_bench.data.atomic import storage_error
+
+    e = storage_error(
+        PermissionError(errno.EACCES, "denied"), "/d/x.h5", "read", "run `import PATH/TO/original`"
+    )
+    assert str(e).endswith("; run `import PATH/TO/original`")  # not /d/x.h5/TO/original
+    e = storage_error(IsADirectoryError(errno.EISDIR, "dir"), "/d/x.h5", "write")
+    assert "rm -r /d/x.h5" in str(e)
+
+
+def test_a_dangling_link_as_the_data_folder_is_named_as_such(tmp_path: Path) -> None:
+    link = tmp_path / "data"
+    link.symlink_to(tmp_path / "gone")
+    _clear_error(_cli("generate", "--split", "val", env_data=link), f"a symbolic link to {tmp_path / 'gone'}")

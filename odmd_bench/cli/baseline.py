@@ -12,8 +12,15 @@ from pathlib import Path
 
 import click
 
-from odmd_bench.cli.options import METHOD_OPTIONS, data_dir_option, given_options, method_options
+from odmd_bench.cli.options import (
+    METHOD_OPTIONS,
+    data_dir_option,
+    data_folder_problems,
+    given_options,
+    method_options,
+)
 from odmd_bench.data.registry import BENCHMARKS, DEFAULT_BENCHMARK, SPLITS
+from odmd_bench.errors import UsageError
 
 
 def _list_methods(ctx: click.Context, _param: click.Parameter, value: bool) -> None:
@@ -92,6 +99,10 @@ def baseline(
     from odmd_bench import load_split, methods
     from odmd_bench.evaluation.predictions import write_predictions
 
+    path = output if output is not None else default_output(name, benchmark, split)
+    misplaced = data_folder_problems({"-o": path}, data_dir)
+    if misplaced:
+        raise UsageError("refusing to write the predictions", misplaced)
     method = methods.load(name)
     options = given_options(method, weights=weights, config=config, selection=selection, mode=mode)
 
@@ -101,7 +112,6 @@ def baseline(
     for set_name, examples in sets.items():
         depths[set_name], reports[set_name] = method.run(examples, **options)
 
-    path = output if output is not None else default_output(name, benchmark, split)
     write_predictions(path, split, depths, benchmark=benchmark)
     n = sum(len(v) for v in depths.values())
     click.echo(f"{name} on {benchmark} {split}: wrote {n} predictions ({', '.join(depths)}) to {path}")

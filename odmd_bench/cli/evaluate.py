@@ -2,15 +2,17 @@
 
 from __future__ import annotations
 
-import sys
+import contextlib
 from pathlib import Path
 from typing import Any
 
 import click
 
-from odmd_bench.cli.options import data_dir_option, same_file
+from odmd_bench.cli.options import data_dir_option, data_folder_problems, same_file
 from odmd_bench.errors import UsageError
+from odmd_bench.evaluation.compare import MAX_RESAMPLES
 from odmd_bench.evaluation.report import FORMATS
+from odmd_bench.evaluation.source import stdin_bytes
 
 _BENCHMARK_HELP = "Benchmark the file is for [default: the file's benchmark column, else odmd-v1]."
 _SETS_HELP = "Score only these sets (comma-separated, e.g. normal,robot); other sets' rows are ignored."
@@ -31,12 +33,12 @@ def _warn(warnings: tuple[str, ...] | list[str]) -> None:
 def _source(path: Path) -> tuple[Any, str | None]:
     """What to read (a path, or stdin's bytes) and the name to report it by."""
     if str(path) == "-":
-        return sys.stdin.buffer, "<stdin>"
+        return stdin_bytes(), "<stdin>"
     return path, None
 
 
-def _refuse_overwrite(outputs: dict[str, Path | None], inputs: list[Path]) -> None:
-    """A report must never replace a file being scored, nor another report.
+def _refuse_overwrite(outputs: dict[str, Path | None], inputs: list[Path], data_dir: Path | None) -> None:
+    """A report must never replace a file being scored, another report, or a data file.
 
     ``outputs``: option -> file, ``None`` or ``-`` for stdout. Paths are compared by
     what they resolve to, so a symbolic or hard link to an input is refused too.
@@ -55,21 +57,31 @@ def _refuse_overwrite(outputs: dict[str, Path | None], inputs: list[Path]) -> No
         for o2, p2 in named[i + 1 :]
         if same_file(p1, p2)
     ]
+    problems += data_folder_problems(files, data_dir)
     if len(outputs) - len(files) > 1:
         problems.append(f"{' and '.join(outputs)} cannot both write to stdout; give one of them a file")
     if problems:
         raise UsageError("refusing to write the output", problems)
 
 
-def _emit(text: str, output: Path | None, what: str) -> None:
-    if output is None or str(output) == "-":
-        click.echo(text, nl=False)
-        return
+def _emit(*reports: tuple[str, Path | None, str]) -> None:
+    """Write each ``(text, output, what)``: to stdout when ``output`` is None or ``-``.
+
+    Every file is written before any replaces what was there, so a failure (a full
+    disk, a folder that cannot be written) leaves them all as they were.
+    """
     from odmd_bench.data.atomic import atomic_write
 
-    with atomic_write(output, "w") as fh:
-        fh.write(text)
-    click.echo(f"wrote {what} to {output}", err=True)
+    files = [(text, out) for text, out, _ in reports if out is not None and str(out) != "-"]
+    with contextlib.ExitStack() as stack:
+        handles = [stack.enter_context(atomic_write(out, "w")) for _, out in files]
+        for (text, _), fh in zip(files, handles, strict=True):
+            fh.write(text)
+    for text, out, what in reports:
+        if out is None or str(out) == "-":
+            click.echo(text, nl=False)
+        else:
+            click.echo(f"wrote {what} to {out}", err=True)
 
 
 @click.command("evaluate")
@@ -116,15 +128,16 @@ def evaluate_command(
     from odmd_bench.evaluation.scoring import evaluate
 
     outputs = {"--output": output} | ({"--per-example": per_example} if per_example is not None else {})
-    _refuse_overwrite(outputs, [preds])
+    _refuse_overwrite(outputs, [preds], data_dir)
     if max_all is not None:
         check_ceiling(max_all)  # before scoring, so that a bad X fails fast
     source, name = _source(preds)
     result = evaluate(source, benchmark=benchmark, data_dir=data_dir, sets=_sets(sets), name=name)
     _warn(result.warnings)
-    if per_example is not None:
-        _emit(format_per_example(result), per_example, "per-example errors")
-    _emit(format_result(result, fmt), output, "the report")
+    reports = (
+        [(format_per_example(result), per_example, "per-example errors")] if per_example is not None else []
+    )
+    _emit(*reports, (format_result(result, fmt), output, "the report"))
     if max_all is not None:
         passed, line = max_all_gate(result, max_all)
         click.echo(line, err=True)
@@ -140,10 +153,16 @@ def evaluate_command(
 @click.option("--format", "fmt", type=click.Choice(FORMATS), default="table", show_default=True)
 @click.option("-o", "--output", type=_OUT, default=None, help=_OUTPUT_HELP)
 @click.option("--sets", default=None, help=_SETS_HELP + " With --fail-if-worse, each is also a gate.")
-@click.option("--seed", type=int, default=0, show_default=True, help="Seed of the bootstrap and the test.")
+@click.option(
+    "--seed",
+    type=click.IntRange(min=0),
+    default=0,
+    show_default=True,
+    help="Seed of the bootstrap and the test.",
+)
 @click.option(
     "--resamples",
-    type=click.IntRange(min=1),
+    type=click.IntRange(1, MAX_RESAMPLES),
     default=2000,
     show_default=True,
     help="Bootstrap resamples and sign flips.",
@@ -186,7 +205,7 @@ def compare_command(
 
     if str(a) == "-" and str(b) == "-":
         raise UsageError("A and B cannot both be read from stdin (-)")
-    _refuse_overwrite({"--output": output}, [a, b])
+    _refuse_overwrite({"--output": output}, [a, b], data_dir)
     (src_a, name_a), (src_b, name_b) = _source(a), _source(b)
     c, ra, rb = compare_files(
         src_a,
@@ -200,7 +219,7 @@ def compare_command(
         names=(name_a, name_b),
     )
     _warn([f"A: {w}" for w in ra.warnings] + [f"B: {w}" for w in rb.warnings])
-    _emit(format_comparison(c, fmt), output, "the comparison")
+    _emit((format_comparison(c, fmt), output, "the comparison"))
     if fail_if_worse:
         from odmd_bench.evaluation.gates import fail_if_worse as worse_gate
 

@@ -7,7 +7,7 @@ command takes ``--data-dir`` as every other command does.
 from __future__ import annotations
 
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any, TypeVar
 
@@ -39,6 +39,28 @@ def same_file(a: Path, b: Path) -> bool:
         return os.path.samefile(a, b)
     except OSError:
         return a.resolve() == b.resolve()
+
+
+def data_folder_problems(outputs: Mapping[str, Path | None], data_dir: Path | None) -> list[str]:
+    """A problem for each output file (``None`` or ``-``: stdout) inside the data folder.
+
+    The data folder holds the benchmarks' files, which a report written over one would
+    destroy; paths are compared by what they resolve to.
+    """
+    from odmd_bench.data.registry import resolve_data_dir
+
+    folder = Path(os.path.realpath(resolve_data_dir(data_dir)))
+    problems = []
+    for opt, path in outputs.items():
+        if path is None or str(path) == "-":
+            continue
+        target = Path(os.path.realpath(path))
+        if target == folder or folder in target.parents:
+            problems.append(
+                f"{opt} {path} is inside the data folder {folder}, which holds the benchmarks' files; "
+                "write it elsewhere"
+            )
+    return problems
 
 
 #: The options a method may take; each is passed only to a method whose ``predict`` does.

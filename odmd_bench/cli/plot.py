@@ -2,15 +2,16 @@
 
 from __future__ import annotations
 
-import sys
+import contextlib
 from pathlib import Path
 from typing import Any
 
 import click
 
-from odmd_bench.cli.options import data_dir_option, same_file
+from odmd_bench.cli.options import data_dir_option, data_folder_problems, same_file
 from odmd_bench.errors import UsageError, ValidationError
 from odmd_bench.evaluation.depth_bins import DEFAULT_BINS, ERRORS
+from odmd_bench.evaluation.source import stdin_bytes
 
 _PREDS = click.Path(path_type=Path, allow_dash=True)
 _OUT = click.Path(path_type=Path, dir_okay=False)
@@ -32,7 +33,11 @@ def _labels(preds: tuple[Path, ...], given: tuple[str, ...]) -> list[str]:
 
 
 def _check_usage(
-    preds: tuple[Path, ...], labels: tuple[str, ...], output: Path, csv_out: Path | None
+    preds: tuple[Path, ...],
+    labels: tuple[str, ...],
+    output: Path,
+    csv_out: Path | None,
+    data_dir: Path | None,
 ) -> None:
     """Every problem of the command line itself, in one report, before anything is read."""
     problems = []
@@ -53,6 +58,7 @@ def _check_usage(
     ]
     if csv_out is not None and same_file(output, csv_out):
         problems.append(f"-o and --csv name the same file {output}")
+    problems += data_folder_problems(outputs, data_dir)
     if problems:
         raise UsageError("cannot plot", problems)
 
@@ -79,7 +85,7 @@ def _score_all(
         name = "<stdin>" if str(p) == "-" else str(p)
         try:
             parsed = parse_predictions(
-                sys.stdin.buffer if str(p) == "-" else p, name=name, benchmark=benchmark, strict=False
+                stdin_bytes() if str(p) == "-" else p, name=name, benchmark=benchmark, strict=False
             )
             if parsed.benchmark is None or parsed.split is None:
                 raise parsed.problems.error(parsed.name)
@@ -190,7 +196,7 @@ def plot_command(
     from odmd_bench.evaluation.plot import default_title, draw_error_curves, text_problems
     from odmd_bench.extras import require
 
-    _check_usage(preds, labels, output, csv_out)
+    _check_usage(preds, labels, output, csv_out, data_dir)
     edges = parse_bins(bins)
     if benchmark is not None:
         check_set(get_benchmark(benchmark), set_name)
@@ -204,22 +210,27 @@ def plot_command(
     curves = error_curves(results, _labels(preds, labels), set_name, error=error, bins=edges)
     first = results[0]
     heading = title or default_title(first.benchmark, first.split, set_name, error, curves[0].n)
-    draw_error_curves(curves, output, error=error, title=heading, band=band)
+    from odmd_bench.data.atomic import atomic_path, atomic_write
+
+    # Both files are written before either replaces what was there: a failure leaves both as they were.
+    with contextlib.ExitStack() as stack:
+        csv_fh = stack.enter_context(atomic_write(csv_out, "w")) if csv_out is not None else None
+        png = stack.enter_context(atomic_path(output))
+        draw_error_curves(curves, png, error=error, title=heading, band=band)
+        if csv_fh is not None:
+            csv_fh.write(
+                format_curves_csv(
+                    curves, benchmark=first.benchmark, split=first.split, set_name=set_name, error=error
+                )
+            )
     click.echo(f"wrote the figure to {output}", err=True)
+    if csv_out is not None:
+        click.echo(f"wrote the binned numbers to {csv_out}", err=True)
     outside = curves[0].bins.outside
     if outside:
         click.echo(
             f"note: {outside} of {curves[0].n} examples lie outside the bin edges and are not shown", err=True
         )
-    if csv_out is not None:
-        from odmd_bench.data.atomic import atomic_write
-
-        text = format_curves_csv(
-            curves, benchmark=first.benchmark, split=first.split, set_name=set_name, error=error
-        )
-        with atomic_write(csv_out, "w") as fh:
-            fh.write(text)
-        click.echo(f"wrote the binned numbers to {csv_out}", err=True)
 
 
 COMMANDS: list[click.Command] = [plot_command]

@@ -16,7 +16,9 @@ import contextlib
 import errno as errno_codes
 import os
 import re
+import shutil
 import socket
+import stat
 import sys
 import tempfile
 import time
@@ -49,17 +51,17 @@ def os_cause(e: BaseException) -> tuple[str, int | None]:
     return (text[:200] + "...") if len(text) > 200 else text or type(e).__name__, None
 
 
+_ELSEWHERE = "write to another folder (the data folder: --data-dir or $ODMD_BENCH_DATA)"
 _FIXES = {
-    errno_codes.ENOSPC: "free space on that disk, or point --data-dir / $ODMD_BENCH_DATA at another folder",
-    errno_codes.EFBIG: "raise the file size limit (ulimit -f), or point --data-dir / $ODMD_BENCH_DATA elsewhere",
-    errno_codes.EDQUOT: "free space within your disk quota, or point --data-dir / $ODMD_BENCH_DATA elsewhere",
-    errno_codes.EACCES: "make that folder writable (and its files readable), or point --data-dir / "
-    "$ODMD_BENCH_DATA at a folder of yours",
-    errno_codes.EPERM: "make that folder writable, or point --data-dir / $ODMD_BENCH_DATA at a folder of yours",
-    errno_codes.EROFS: "that file system is read-only: point --data-dir / $ODMD_BENCH_DATA at a writable folder",
-    errno_codes.ENOTDIR: "a part of that path is a file, not a folder: point --data-dir / $ODMD_BENCH_DATA "
-    "at a folder",
+    errno_codes.ENOSPC: f"free space on that disk, or {_ELSEWHERE}",
+    errno_codes.EFBIG: f"raise the file size limit (ulimit -f), or {_ELSEWHERE}",
+    errno_codes.EDQUOT: f"free space within your disk quota, or {_ELSEWHERE}",
+    errno_codes.EACCES: f"make that folder writable (and its files readable), or {_ELSEWHERE}",
+    errno_codes.EPERM: f"make that folder writable, or {_ELSEWHERE}",
+    errno_codes.EROFS: f"that file system is read-only: {_ELSEWHERE}",
+    errno_codes.ENOTDIR: f"a part of that path is a file, not a folder: {_ELSEWHERE}",
     errno_codes.EISDIR: "a folder stands where the file belongs: remove it (rm -r PATH) and run the command again",
+    errno_codes.ELOOP: "the path is a loop of symbolic links: remove one of them",
 }
 
 
@@ -68,8 +70,9 @@ def storage_error(
 ) -> StorageError:
     """A :class:`StorageError` for ``e``: ``cannot ACTION PATH: CAUSE; FIX``."""
     cause, code = os_cause(e)
-    hint = fix or _FIXES.get(code or -1, "check the path and its permissions, then run the command again")
-    hint = hint.replace("PATH", str(path))
+    hint = fix or _FIXES.get(
+        code or -1, "check the path and its permissions, then run the command again"
+    ).replace("PATH", str(path))
     cls = MissingDataError if code == errno_codes.ENOENT else StorageError
     return cls(f"cannot {action} {path}: {cause}; {hint}", errno=code, filename=str(path))
 
@@ -86,9 +89,16 @@ def ensure_folder(folder: Path) -> None:
     try:
         folder.mkdir(parents=True, exist_ok=True)
     except FileExistsError:
+        what = next(
+            (
+                f"a symbolic link to {os.readlink(q)}, which does not exist"
+                for q in (folder, *folder.parents)
+                if q.is_symlink() and not q.exists()
+            ),
+            "a file",
+        )
         raise StorageError(
-            f"cannot use {folder} as a folder: it is a file; point --data-dir / $ODMD_BENCH_DATA "
-            "at a folder (or move the file away)",
+            f"cannot use {folder} as a folder: it is {what}; move it away, or {_ELSEWHERE}",
             errno=errno_codes.ENOTDIR,
             filename=str(folder),
         ) from None
@@ -198,6 +208,31 @@ def clean_stale_temps(target: str | os.PathLike[str], max_age: float = STALE_TEM
     return removed
 
 
+def write_target(path: str | os.PathLike[str]) -> tuple[Path, bool]:
+    """The file that writing ``path`` changes, and whether it is replaced atomically.
+
+    A symbolic link is followed (the link stays and its target gets the new content,
+    as a shell's ``>`` does). A regular file, a missing one or a folder (refused when
+    written) is replaced atomically; an existing device, pipe or socket
+    (``/dev/null``, ``/dev/stdout``, a FIFO) is written into, never replaced.
+
+    Raises:
+        StorageError: the path is a loop of symbolic links, or cannot be looked at.
+    """
+    target = Path(path)
+    if target.is_symlink():
+        target = Path(os.path.realpath(target))
+    try:
+        mode = target.stat().st_mode
+    except FileNotFoundError:
+        return target, True
+    except OSError as e:
+        if e.errno in (errno_codes.ENOTDIR, errno_codes.EACCES):
+            return target, True  # the write says why, with the folder's fix
+        raise storage_error(e, path, "write") from None
+    return target, stat.S_ISREG(mode) or stat.S_ISDIR(mode)
+
+
 @contextlib.contextmanager
 def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
     """A temporary file name beside ``path``; on success, the file is moved over ``path``.
@@ -207,9 +242,15 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
     SIGKILLed writer's temporary file is removed by the next writer, see
     :func:`clean_stale_temps`). OS failures of the file operations (full disk,
     read-only folder, a folder in the file's place...) raise :class:`StorageError`.
-    For writers that want a file name (h5py, savefig); see also :func:`atomic_write`.
+    A symbolic link is followed, and a device or pipe is written into once the body
+    succeeds (:func:`write_target`). For writers that want a file name (h5py,
+    savefig); see also :func:`atomic_write`.
     """
-    target = Path(path)
+    target, replace = write_target(path)
+    if not replace:
+        with _through_temp(target) as tmp:
+            yield tmp
+        return
     clean_stale_temps(target)
     fd, tmp = _temp_beside(target)
     os.close(fd)
@@ -236,6 +277,26 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
         with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)
         raise
+
+
+@contextlib.contextmanager
+def _through_temp(device: Path) -> Iterator[Path]:
+    """A temporary file whose content is copied into ``device`` (not a regular file) on success."""
+    try:
+        fd, tmp = tempfile.mkstemp(suffix=".tmp")
+    except OSError as e:
+        raise storage_error(e, tempfile.gettempdir(), "write into") from None
+    os.close(fd)
+    try:
+        yield Path(tmp)
+        try:
+            with open(tmp, "rb") as src, open(device, "wb") as dst:
+                shutil.copyfileobj(src, dst)
+        except OSError as e:
+            raise storage_error(e, device, "write") from None
+    finally:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
 
 
 @contextlib.contextmanager
@@ -295,4 +356,5 @@ __all__ = [
     "locked",
     "os_cause",
     "storage_error",
+    "write_target",
 ]

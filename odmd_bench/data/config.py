@@ -21,9 +21,26 @@ Vec3 = tuple[float, float, float]
 Range = tuple[float, float]
 
 
+#: The most observations an example may have (the paper uses 10).
+MAX_N_OBS = 1000
+
+
+def _show(value: Any) -> str:
+    """A value for a message, cut short (a configuration may hold anything)."""
+    try:
+        text = (
+            repr(value)
+            if isinstance(value, str | int | float | tuple | list | None)
+            else type(value).__name__
+        )
+    except ValueError:  # an integer of more digits than Python converts
+        text = f"a {type(value).__name__} too large to print"
+    return text if len(text) <= 80 else text[:77] + "..."
+
+
 def _finite(name: str, value: Any, problems: list[str]) -> None:
     if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
-        problems.append(f"{name}: expected a finite number, got {value!r}")
+        problems.append(f"{name}: expected a finite number, got {_show(value)}")
 
 
 @dataclass(frozen=True)
@@ -92,34 +109,42 @@ class GeneratorConfig:
         problems: list[str] = []
         if not isinstance(self.camera, CameraConfig):
             problems.append(f"camera: expected a CameraConfig, got {type(self.camera).__name__}")
-        if isinstance(self.n_obs, bool) or not isinstance(self.n_obs, int) or self.n_obs < 2:
-            problems.append(f"n_obs: expected an integer >= 2, got {self.n_obs!r}")
+        if (
+            isinstance(self.n_obs, bool)
+            or not isinstance(self.n_obs, int)
+            or not 2 <= self.n_obs <= MAX_N_OBS
+        ):
+            problems.append(f"n_obs: expected an integer from 2 to {MAX_N_OBS}, got {_show(self.n_obs)}")
+        typed = set()  # the fields whose type is right, checked further below
         for name, size in (("object_size", 2), ("initial_depth", 2), ("move_min", 3), ("move_max", 3)):
             value = getattr(self, name)
             if not isinstance(value, tuple) or len(value) != size:
-                problems.append(f"{name}: expected {size} numbers, got {value!r}")
+                problems.append(f"{name}: expected {size} numbers, got {_show(value)}")
                 continue
+            before = len(problems)
             for i, v in enumerate(value):
                 _finite(f"{name}[{i}]", v, problems)
+            typed.update([name] if len(problems) == before else [])
         for name in ("camera_sigma", "box_sigma", "replace_prob", "reverse_prob"):
+            before = len(problems)
             _finite(name, getattr(self, name), problems)
-        if problems:
-            raise ConfigError("invalid generator configuration", problems)
+            typed.update([name] if len(problems) == before else [])
 
-        lo, hi = self.object_size
-        if not 0 < lo <= hi:
-            problems.append(f"object_size: need 0 < min <= max, got ({lo}, {hi})")
-        z_lo, z_hi = self.initial_depth
-        if not 0 < z_lo <= z_hi:
-            problems.append(f"initial_depth: need 0 < min <= max, got ({z_lo}, {z_hi})")
-        for axis, (a, b) in enumerate(zip(self.move_min, self.move_max, strict=True)):
-            if not 0 <= a <= b:
-                problems.append(f"move_min[{axis}]/move_max[{axis}]: need 0 <= min <= max, got ({a}, {b})")
+        if "object_size" in typed and not 0 < self.object_size[0] <= self.object_size[1]:
+            problems.append(f"object_size: need 0 < min <= max, got {self.object_size}")
+        if "initial_depth" in typed and not 0 < self.initial_depth[0] <= self.initial_depth[1]:
+            problems.append(f"initial_depth: need 0 < min <= max, got {self.initial_depth}")
+        if {"move_min", "move_max"} <= typed:
+            for axis, (a, b) in enumerate(zip(self.move_min, self.move_max, strict=True)):
+                if not 0 <= a <= b:
+                    problems.append(
+                        f"move_min[{axis}]/move_max[{axis}]: need 0 <= min <= max, got ({a}, {b})"
+                    )
         for name in ("camera_sigma", "box_sigma"):
-            if getattr(self, name) < 0:
+            if name in typed and getattr(self, name) < 0:
                 problems.append(f"{name}: must be >= 0, got {getattr(self, name)}")
         for name in ("replace_prob", "reverse_prob"):
-            if not 0 <= getattr(self, name) <= 1:
+            if name in typed and not 0 <= getattr(self, name) <= 1:
                 problems.append(f"{name}: must lie in [0, 1], got {getattr(self, name)}")
         if problems:
             raise ConfigError("invalid generator configuration", problems)
@@ -167,55 +192,63 @@ class GeneratorConfig:
             raise ConfigError(f"a generator configuration must be a mapping, got {type(data).__name__}")
         base = base or PRESETS["odmd"]
         known = {f.name for f in fields(cls)}
-        unknown = sorted(set(data) - known)
-        problems = [f"unknown key {k!r} (known: {', '.join(sorted(known))})" for k in unknown]
+        problems = [f"key {_show(k)} is not a name" for k in data if not isinstance(k, str)]
+        unknown = sorted(k for k in data if isinstance(k, str) and k not in known)
+        problems += [f"unknown key {k!r} (known: {', '.join(sorted(known))})" for k in unknown]
         camera = base.camera
         if "camera" in data:
             cam = data["camera"]
             cam_known = {f.name for f in fields(CameraConfig)}
             if not isinstance(cam, Mapping):
-                problems.append(f"camera: expected a mapping, got {cam!r}")
+                problems.append(f"camera: expected a mapping, got {_show(cam)}")
             else:
+                problems += [f"camera: key {_show(k)} is not a name" for k in cam if not isinstance(k, str)]
                 problems += [
                     f"unknown key 'camera.{k}' (known: {', '.join(sorted(cam_known))})"
-                    for k in sorted(set(cam) - cam_known)
+                    for k in sorted(k for k in cam if isinstance(k, str) and k not in cam_known)
                 ]
-                if not problems:
-                    camera = CameraConfig(**{**asdict(base.camera), **dict(cam)})
         if problems:
             raise ConfigError("invalid generator configuration", problems)
+        if "camera" in data:
+            try:
+                camera = CameraConfig(**{**asdict(base.camera), **dict(data["camera"])})
+            except ConfigError as e:  # reported with the other fields' problems
+                problems += e.problems or [e.message]
         values: dict[str, Any] = {f.name: getattr(base, f.name) for f in fields(cls)}
         for k, v in data.items():
             if k == "camera":
                 continue
             values[k] = tuple(v) if isinstance(v, list) else v
         values["camera"] = camera
-        return cls(**values)
+        try:
+            config = cls(**values)
+        except ConfigError as e:
+            raise ConfigError(e.message, problems + e.problems) from None
+        if problems:
+            raise ConfigError("invalid generator configuration", problems)
+        return config
 
     @classmethod
     def from_file(cls, path: str | Path) -> GeneratorConfig:
         """Read a ``.json``, ``.yaml`` or ``.yml`` file (a mapping of the fields)."""
-        p = Path(path)
-        try:
-            text = p.read_text(encoding="utf-8")
-        except OSError as e:
-            raise ConfigError(f"cannot read configuration file {p}: {e.strerror}") from None
-        suffix = p.suffix.lower()
-        try:
-            if suffix == ".json":
-                data = json.loads(text)
-            elif suffix in (".yaml", ".yml"):
-                import yaml
+        from odmd_bench.documents import MAX_DOCUMENT_BYTES, DocumentError, load_document
 
-                data = yaml.safe_load(text)
-            else:
-                raise ConfigError(f"{p}: unknown configuration format {suffix!r}; use .json, .yaml or .yml")
-        except (json.JSONDecodeError, ValueError) as e:
-            raise ConfigError(f"{p}: not valid {suffix[1:].upper()}: {e}") from None
-        except Exception as e:  # yaml.YAMLError, without importing yaml at module level
-            if type(e).__module__.startswith("yaml"):
-                raise ConfigError(f"{p}: not valid YAML: {e}") from None
-            raise
+        p = Path(path)
+        suffix = p.suffix.lower()
+        kinds = {".json": "json", ".yaml": "yaml", ".yml": "yaml"}
+        if suffix not in kinds:
+            raise ConfigError(f"{p}: unknown configuration format {suffix!r}; use .json, .yaml or .yml")
+        try:
+            with p.open("rb") as fh:
+                raw = fh.read(MAX_DOCUMENT_BYTES + 1)
+        except OSError as e:
+            raise ConfigError(
+                f"cannot read configuration file {p}: {e.strerror or type(e).__name__}"
+            ) from None
+        try:
+            data = load_document(raw, kinds[suffix])
+        except DocumentError as e:
+            raise ConfigError(f"{p}: not valid {kinds[suffix].upper()}: {e}") from None
         return cls.from_dict(data or {})
 
     def write(self, path: str | Path) -> None:

@@ -74,7 +74,15 @@ def generate(
     n = _count(n, "n")
     config = get_preset(preset)
     check_perturbation(perturbation)
-    return _examples(_generate_arrays(n, config, perturbation, as_rng(rng)), config, perturbation)
+    try:
+        return _examples(_generate_arrays(n, config, perturbation, as_rng(rng)), config, perturbation)
+    except MemoryError:
+        from odmd_bench.errors import UsageError
+
+        raise UsageError(
+            f"{n:,} examples of {config.n_obs} observations do not fit in memory; "
+            "generate fewer at a time (odmd_bench.stream gives batches)"
+        ) from None
 
 
 def _count(value: object, name: str) -> int:

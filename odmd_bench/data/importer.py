@@ -119,6 +119,19 @@ def _array(obj: Any, where: str, shape: tuple[int | None, ...], problems: list[s
     return obj
 
 
+def _number(value: Any) -> float | None:
+    """``value`` as a finite float, or None (a string, a list, NaN...)."""
+    if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating):
+        return None
+    v = float(value)
+    return v if np.isfinite(v) else None
+
+
+def _short(value: Any) -> str:
+    text = repr(value) if isinstance(value, str | int | float | list | tuple) else type(value).__name__
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
 def convert(obj: Any, origin: str, target: Target) -> Examples:
     """Turn one unpickled original file into :class:`Examples` (numbers copied exactly)."""
     problems: list[str] = []
@@ -176,14 +189,24 @@ def convert(obj: Any, origin: str, target: Target) -> Examples:
     }
     image_dim = bb.get("image_dim")
     if isinstance(image_dim, list | tuple) and len(image_dim) == 2:
-        attrs["image_height"], attrs["image_width"] = int(image_dim[0]), int(image_dim[1])
+        dims = [_number(v) for v in image_dim]
+        if not all(d is not None and d > 0 and d == int(d) for d in dims):
+            raise ImportRefused(
+                f"{origin}: image_dim = {_short(image_dim)} is not two positive whole numbers"
+            )
+        attrs["image_height"], attrs["image_width"] = int(dims[0]), int(dims[1])  # type: ignore[arg-type]
     if target.benchmark == "odmd-paper":
         # All ODMD sets (generated and robot) use the HSR grasp camera (paper, sec. 3.3);
         # the generated files record fx/W and fy/H, which must agree.
         cam = HSR_GRASP_CAMERA
         for key, value in (("fx_norm", cam.fx / cam.image_width), ("fy_norm", cam.fy / cam.image_height)):
-            if key in bb and not np.isclose(float(bb[key]), value, rtol=0, atol=1e-12):
-                raise ImportRefused(f"{origin}: {key} = {bb[key]} does not match the HSR camera ({value})")
+            if key not in bb:
+                continue
+            got = _number(bb[key])
+            if got is None or not np.isclose(got, value, rtol=0, atol=1e-12):
+                raise ImportRefused(
+                    f"{origin}: {key} = {_short(bb[key])} does not match the HSR camera ({value})"
+                )
         attrs.update(
             fx=cam.fx,
             fy=cam.fy,

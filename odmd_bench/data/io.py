@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import errno as errno_codes
 import os
+import stat
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -104,6 +105,13 @@ def _open_h5(p: Path, fix: str | None) -> Any:
             filename=str(p),
         )
     try:
+        mode = p.stat().st_mode
+    except OSError:
+        mode = None  # h5py says why below
+    if mode is not None and not stat.S_ISREG(mode):
+        # h5py would wait forever on a pipe with no writer, or read a device without end.
+        raise DataError(f"{p} is not a regular file (a pipe, socket or device)" + (f"; {fix}" if fix else ""))
+    try:
         return h5py.File(p, "r")
     except FileNotFoundError:
         raise MissingDataError(
@@ -169,7 +177,16 @@ def read_set(
             missing = [k for k in CORE_ARRAYS if k not in g]
             if missing:
                 raise DataError(f"{where} lacks the arrays {', '.join(missing)}; {hint}")
-            arrays = {k: g[k][()] for k in g}
+            shapes = _member_problems(g)
+            if shapes:
+                raise DataError(f"{where} is not a set of examples; {hint}", shapes)
+            try:
+                arrays = {k: g[k][()] for k in g}
+            except MemoryError:
+                size = sum(g[k].size * g[k].dtype.itemsize for k in g)
+                raise DataError(
+                    f"{where}: its arrays ({size:,} bytes) do not fit in memory; {hint}"
+                ) from None
             attrs = {k: plain_value(v) for k, v in g.attrs.items()}
             file_attrs = {k: plain_value(v) for k, v in f.attrs.items()}
     except OdmdError:
@@ -181,9 +198,9 @@ def read_set(
         raise DataError(f"{where} is not the set expected here; {hint}", problems)
     if verify:
         _verify(where, file_attrs, attrs, arrays, hint)
-    for k, v in file_attrs.items():
-        if k != "format_version":  # a property of the container, not of the set
-            attrs.setdefault(k, v)
+    for k in FILE_IDENTITY:  # checked against the path above; no other file attribute is hashed
+        if k in file_attrs:
+            attrs.setdefault(k, file_attrs[k])
     try:
         return Examples(
             boxes=arrays.pop("boxes"),
@@ -196,6 +213,36 @@ def read_set(
         )
     except DataError as e:
         raise DataError(f"{where}: {e.message}; {hint}", e.problems) from None
+
+
+#: The file attributes a set takes as its own (where it lacks them): its identity, which
+#: is checked against where the file is found. Others are covered by no hash and ignored.
+FILE_IDENTITY = ("benchmark", "split")
+
+
+def _member_problems(g: Any) -> list[str]:
+    """What is wrong with the members of set group ``g``, looked at without reading them.
+
+    Every member must be an array of one example per row: ``boxes`` (N, n_obs, 4) and
+    nothing larger than it, so that a damaged or hostile file cannot make a reader
+    allocate more than the set's size.
+    """
+    import h5py
+
+    boxes = g["boxes"]
+    if not isinstance(boxes, h5py.Dataset) or len(boxes.shape) != 3 or boxes.shape[2] != 4:
+        return [f"boxes must be an (N, n_obs, 4) array, got {getattr(boxes, 'shape', type(boxes).__name__)}"]
+    n = boxes.shape[0]
+    problems = []
+    for k in g:
+        m = g[k]
+        if not isinstance(m, h5py.Dataset):
+            problems.append(f"{k!r} is a {type(m).__name__}, not an array")
+        elif not m.shape or m.shape[0] != n:
+            problems.append(f"{k!r} has shape {m.shape}; every array has one row per example ({n})")
+        elif m.size > boxes.size:
+            problems.append(f"{k!r} has {m.size:,} values, more than boxes' {boxes.size:,}")
+    return problems
 
 
 def _identity_problems(
@@ -260,6 +307,8 @@ def file_summary(path: str | os.PathLike[str]) -> dict[str, Any]:
     Raises:
         StorageError, DataError: the file cannot be read, or is damaged.
     """
+    import h5py
+
     p = Path(path)
     f = _open_h5(p, None)
     try:
@@ -271,7 +320,12 @@ def file_summary(path: str | os.PathLike[str]) -> dict[str, Any]:
             }
             for name, g in f.items():
                 out["sets"][name] = {
-                    "arrays": {k: (str(d.dtype), list(d.shape)) for k, d in g.items()},
+                    "arrays": {
+                        k: (str(d.dtype), list(d.shape))
+                        if isinstance(d, h5py.Dataset)
+                        else ("not an array", [])
+                        for k, d in g.items()
+                    },
                     "attrs": {k: plain_value(v) for k, v in g.attrs.items()},
                 }
     except _H5_FAILURES as e:

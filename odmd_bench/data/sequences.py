@@ -35,7 +35,6 @@ from __future__ import annotations
 
 import io
 import os
-import sys
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -56,7 +55,7 @@ from odmd_bench.data.sequence_rows import (
 from odmd_bench.errors import UsageError, ValidationError
 from odmd_bench.evaluation.problems import Problems
 from odmd_bench.evaluation.rows import decode
-from odmd_bench.evaluation.source import read_source
+from odmd_bench.evaluation.source import read_source, stdin_bytes
 
 _TITLE = "{name} cannot be read as sequences"
 
@@ -210,9 +209,7 @@ def read_sequences(
     if isinstance(source, bytes):
         data, where = read_source(source, limit=None, title=_TITLE, kind="sequences")
     elif str(source) == "-":
-        data, where = read_source(
-            sys.stdin.buffer, name="<stdin>", limit=None, title=_TITLE, kind="sequences"
-        )
+        data, where = read_source(stdin_bytes(), name="<stdin>", limit=None, title=_TITLE, kind="sequences")
     else:
         data, where = read_source(source, name=str(source), limit=None, title=_TITLE, kind="sequences")
     title = f"{where} cannot be read as sequences"

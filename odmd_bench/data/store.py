@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import logging
 import os
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -79,6 +79,23 @@ def build_set(benchmark: str, split: str, set_name: str) -> Examples:
         )
     ex.attrs.update(benchmark=benchmark, split=split, set=set_name)
     return ex
+
+
+def is_pinned(benchmark: str, attrs: Mapping[str, Any]) -> bool:
+    """Whether a loaded set of ``benchmark`` is its pinned version.
+
+    Loading refuses a set that differs from its pins (:func:`pin_problem`), so this is
+    always True for a generated benchmark, and for an imported one exactly when the set
+    is the conversion of a known original; False for a set imported with
+    ``--allow-unknown`` or written by other means, whose scores do not compare with the
+    paper's.
+    """
+    if get_benchmark(benchmark).generated:
+        return True
+    from odmd_bench.data.manifests import known_originals
+
+    source = attrs.get("source_sha256")
+    return source is not None and str(source) in known_originals()
 
 
 def pin_problem(benchmark: str, split: str, set_name: str, attrs: dict[str, Any]) -> str | None:

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import difflib
+import re
+
 from odmd_bench.evaluation.problems import Problems, closest, plural, show
 
 #: Columns every predictions file must have.
@@ -12,6 +15,21 @@ OPTIONAL_COLUMNS: tuple[str, ...] = ("benchmark",)
 _HEADER_SHOWN = 12
 
 
+def _misspelt(name: str, column: str) -> bool:
+    """Whether header cell ``name`` is ``column`` written otherwise (case, ``_``, a typo or two).
+
+    Example:
+        >>> [_misspelt(h, "benchmark") for h in ("Benchmark", "bench_mark", "benchmrk", "benchmark_notes")]
+        [True, True, True, False]
+    """
+    folded = re.sub(r"[^0-9a-z]", "", name.lower())
+    if folded == column:
+        return True
+    return (
+        abs(len(folded) - len(column)) <= 2 and difflib.SequenceMatcher(None, folded, column).ratio() >= 0.85
+    )
+
+
 def check_header(header: list[str], problems: Problems) -> dict[str, int] | None:
     """Column positions by name, or None (with ``problems`` added) when the header is wrong."""
     cols: dict[str, int] = {}
@@ -20,6 +38,14 @@ def check_header(header: list[str], problems: Problems) -> dict[str, int] | None
             problems.add(f"column {show(name)} appears more than once in the header")
         else:
             cols[name] = i
+    for c in OPTIONAL_COLUMNS:
+        if c not in cols:
+            for h in header:
+                if h not in REQUIRED_COLUMNS and _misspelt(h, c):
+                    problems.add(
+                        f"column {show(h)} looks like the optional column {c!r} misspelt, whose "
+                        f"values would then be ignored: name it {c} (or rename it, if it is something else)"
+                    )
     missing = [c for c in REQUIRED_COLUMNS if c not in cols]
     if not missing:
         return None if problems else cols

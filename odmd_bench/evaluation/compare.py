@@ -41,6 +41,8 @@ TIE = "not distinguishable"
 
 #: Resamples are drawn this many at a time, to bound memory (chunk x N indices).
 _CHUNK = 250
+#: The most resamples a comparison draws (p-values to 1e-6; two float64 arrays of 8 MB).
+MAX_RESAMPLES = 1_000_000
 
 
 @dataclass(frozen=True)
@@ -187,8 +189,10 @@ def compare_errors(
         raise UsageError(f"A and B must cover the same sets; A has {list(errors_a)}, B has {list(errors_b)}")
     if not errors_a:
         raise UsageError("nothing to compare: no sets")
-    if n_resamples < 1:
-        raise UsageError(f"n_resamples must be >= 1, got {n_resamples}")
+    if not 1 <= n_resamples <= MAX_RESAMPLES:
+        raise UsageError(f"n_resamples must be between 1 and {MAX_RESAMPLES:,}, got {n_resamples}")
+    if seed < 0:
+        raise UsageError(f"seed must be >= 0, got {seed}")
     if not 0 < confidence < 1:
         raise UsageError(f"confidence must be between 0 and 1, got {confidence}")
     per_set: dict[str, PairedDifference] = {}

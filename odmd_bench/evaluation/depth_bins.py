@@ -39,6 +39,8 @@ ERRORS: dict[str, tuple[Callable[[Any, Any], np.ndarray], str]] = {
 
 #: Default number of equal-width bins.
 DEFAULT_BINS = 10
+#: The most bins a figure shows (``--bins``).
+MAX_BINS = 200
 
 #: Columns of :func:`format_curves_csv`, in order.
 CSV_COLUMNS: tuple[str, ...] = (
@@ -124,12 +126,18 @@ def parse_bins(text: str) -> int | tuple[float, ...]:
                 f"--bins {text!r} is neither a positive number of bins nor comma-separated "
                 "edges in metres (e.g. 10, or 0,10,20,40,70)"
             )
+        if n > MAX_BINS:
+            raise UsageError(f"--bins {text!r}: at most {MAX_BINS} bins fit a figure")
         return n
     try:
         edges = tuple(float(v) for v in value.split(","))
     except ValueError:
         raise UsageError(f"--bins {text!r}: every edge must be a number (metres)") from None
     _check_edges(edges, f"--bins {text!r}")
+    if len(edges) > MAX_BINS + 1:
+        raise UsageError(
+            f"--bins: {len(edges)} edges given; at most {MAX_BINS + 1} ({MAX_BINS} bins) fit a figure"
+        )
     return edges
 
 
@@ -137,6 +145,7 @@ def _check_edges(edges: Sequence[float], what: str) -> None:
     problems = []
     if len(edges) < 2:
         problems.append(f"{len(edges)} edge given; at least two are needed (one bin)")
+
     if not all(np.isfinite(edges)):
         problems.append("every edge must be finite")
     elif any(b <= a for a, b in zip(edges, edges[1:], strict=False)):
@@ -320,6 +329,7 @@ __all__ = [
     "ERRORS",
     "DepthBins",
     "ErrorCurve",
+    "MAX_BINS",
     "bin_edges",
     "binned_errors",
     "error_curves",

@@ -26,6 +26,7 @@ import numpy as np
 
 from odmd_bench.data.examples import Examples
 from odmd_bench.data.registry import get_benchmark
+from odmd_bench.data.store import is_pinned
 from odmd_bench.errors import ValidationError
 from odmd_bench.evaluation.columns import OPTIONAL_COLUMNS, REQUIRED_COLUMNS
 from odmd_bench.evaluation.coverage import check_coverage, check_sets
@@ -92,13 +93,22 @@ def score(predictions: Predictions, examples: Mapping[str, Examples]) -> Evaluat
         "predictions_rows": predictions.n_rows,
         "ignored_columns": list(predictions.ignored_columns),
     }
+    warnings = tuple(predictions.warnings)
+    unpinned = [s for s in per_set if not is_pinned(predictions.benchmark, used[s].attrs)]
+    if unpinned:
+        provenance["unpinned_sets"] = unpinned
+        warnings += (
+            f"{predictions.benchmark} {predictions.split} {', '.join(unpinned)}: not the pinned "
+            "version of the benchmark (imported with --allow-unknown, or written by other means); "
+            "these scores do not compare with the paper's or the leaderboard's",
+        )
     return EvaluationResult(
         benchmark=predictions.benchmark,
         split=predictions.split,
         sets=per_set,
         all_percent_error_mean=all_mean,
         provenance=provenance,
-        warnings=predictions.warnings,
+        warnings=warnings,
         predictions=preds,
         examples=used,
     )

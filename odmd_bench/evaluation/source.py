@@ -17,6 +17,7 @@ import gzip
 import io
 import os
 import stat
+import sys
 import zlib
 from pathlib import Path
 from typing import BinaryIO, TypeAlias
@@ -73,6 +74,14 @@ def _gunzip(data: bytes, title: str, limit: int | None) -> bytes:
     if limit is not None and len(plain) > limit:
         raise ValidationError(title, [_too_large("the decompressed file", limit)])
     return plain
+
+
+def stdin_bytes() -> BinaryIO:
+    """Standard input as bytes, for ``-``; a :class:`UsageError` when it is closed (``<&-``)."""
+    stream = getattr(sys.stdin, "buffer", None)
+    if stream is None:
+        raise UsageError("standard input is closed: there is nothing to read for '-'; name a file")
+    return stream
 
 
 def read_source(

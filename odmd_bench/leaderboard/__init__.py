@@ -5,7 +5,8 @@ The package, by concern:
 - :mod:`~odmd_bench.leaderboard.specs`: the boards, as data (:data:`BOARDS`).
 - :mod:`~odmd_bench.leaderboard.entry`: an entry's metadata, :class:`EntryMeta`,
   validated on creation (:func:`~odmd_bench.leaderboard.entry.validate_meta`).
-- :mod:`~odmd_bench.leaderboard.safeyaml`: bounded YAML/JSON reading (no aliases).
+- :mod:`odmd_bench.documents`: bounded YAML/JSON reading (no aliases), shared with the
+  generator configurations.
 - :mod:`~odmd_bench.leaderboard.files`: the folder: discovery, reading entries (no
   symbolic links), writing the outputs; :mod:`~odmd_bench.leaderboard.add` adds one.
 - :mod:`~odmd_bench.leaderboard.board`: loading each board's sets once and scoring

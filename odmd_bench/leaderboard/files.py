@@ -20,10 +20,10 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from odmd_bench.data.atomic import atomic_write
+from odmd_bench.documents import MAX_DOCUMENT_BYTES, DocumentError, load_document
 from odmd_bench.errors import UsageError, ValidationError
 from odmd_bench.evaluation.source import MAX_PREDICTIONS_BYTES, read_source
 from odmd_bench.leaderboard.entry import ENTRY_FILES, Entry, validate_meta
-from odmd_bench.leaderboard.safeyaml import MAX_DOCUMENT_BYTES, DocumentError, load_document
 
 if TYPE_CHECKING:
     from odmd_bench.leaderboard.render import Built

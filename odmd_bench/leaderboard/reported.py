@@ -12,9 +12,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from odmd_bench.data.registry import BENCHMARKS
+from odmd_bench.documents import DocumentError, load_document
 from odmd_bench.errors import ValidationError
 from odmd_bench.leaderboard.rules import show
-from odmd_bench.leaderboard.safeyaml import DocumentError, load_document
 
 REPORTED = "reported.yaml"
 #: Fields every reported result must have, and those it may have.

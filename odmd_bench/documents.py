@@ -1,6 +1,7 @@
-"""Bounded reading of the leaderboard's YAML and JSON documents.
+"""Bounded reading of YAML and JSON documents: leaderboard metadata, generator configurations.
 
-Entry metadata and ``reported.yaml`` come from pull requests, so a document is refused
+Entry metadata and ``reported.yaml`` come from pull requests, and configuration files
+from anywhere, so a document is refused
 before it can cost memory or time: at most :data:`MAX_DOCUMENT_BYTES` bytes, nesting
 at most :data:`MAX_DEPTH` deep, and in YAML no anchors (``&a``), aliases (``*a``) or
 merge keys (an alias "bomb" of 1 KB would otherwise expand to gigabytes). Only plain
