@@ -14,6 +14,7 @@ from odmd_bench.data.describe import describe
 from odmd_bench.data.examples import Examples, fill_missing, nearest_detected_index
 from odmd_bench.data.generator import GENERATOR_VERSION, generate, stream
 from odmd_bench.data.hashing import file_sha256
+from odmd_bench.data.manifests import known_originals
 from odmd_bench.data.registry import BENCHMARKS, Benchmark, get_benchmark
 from odmd_bench.data.sequences import read_sequences
 from odmd_bench.data.store import ensure_generated, load, load_split
@@ -67,6 +68,7 @@ __all__ = [
     "fill_missing",
     "generate",
     "get_benchmark",
+    "known_originals",
     "load",
     "load_split",
     "nearest_detected_index",

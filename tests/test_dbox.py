@@ -326,7 +326,7 @@ def test_a_checkpoint_in_the_original_layout_loads_and_runs(tmp_path: Path) -> N
     state = _random_state(10)
     # The original release saved net.state_dict(): an OrderedDict of float32 tensors.
     ckpt = OrderedDict((k, torch.from_numpy(v).float()) for k, v in state.items())
-    path = _save(ckpt, tmp_path / "DBox_pretrained_paper.pt")
+    path = _save(ckpt, tmp_path / "original_layout.pt")
     ex = _examples(50, 11)
     got = dbox.predict(ex, weights=path)
     inp = make_inputs(ex, "rel")
@@ -861,3 +861,49 @@ def test_the_package_and_the_evaluator_never_import_torch() -> None:
         "odmd_bench_baselines.dbox; assert 'torch' not in sys.modules, 'torch was imported'"
     )
     subprocess.run([sys.executable, "-c", code], check=True, cwd=REPO)
+
+
+def test_a_new_run_never_replaces_weights_and_a_damaged_state_is_refused(tmp_path: Path) -> None:
+    opts = {"device": "cpu", "val_every": 5, "val_sets": _tiny_val(), "batch_size": 16, "progress": None}
+    held = tmp_path / "held"
+    held.mkdir()
+    (held / "dbox_p.pt").write_bytes(b"someone's weights")
+    with pytest.raises(UsageError, match=r"already holds weights or a log \(dbox_p.pt\)"):
+        train("p", 5, held, **opts)  # type: ignore[arg-type]
+    assert (held / "dbox_p.pt").read_bytes() == b"someone's weights"
+    with pytest.raises(_Interrupt):
+        train("p", 10, tmp_path / "run", on_step=_stop_at(7), **opts)  # type: ignore[arg-type]
+    state = tmp_path / "run" / "last.pt"
+    good = state.read_bytes()
+    for bad in (5, {"settings": [1]}, {**torch.load(state, weights_only=True), "best": "{not json"}):
+        torch.save(bad, state)
+        with pytest.raises(DataError, match="training state") as info:
+            train("p", 10, tmp_path / "run", resume=True, **opts)  # type: ignore[arg-type]
+        assert "weights_only` set to `False`" not in info.value.render()
+    state.write_bytes(good)
+    train("p", 10, tmp_path / "run", resume=True, **opts)  # type: ignore[arg-type]
+
+
+def test_a_record_cannot_change_the_formulation_of_its_weights(tmp_path: Path) -> None:
+    ex = odmd_bench.generate(40, "odmd", "both", rng=5)
+    shipped = dbox.predict(ex, config="abs")
+    src = dbox.weights_path("abs")
+    copy = tmp_path / "dbox_abs.pt"
+    copy.write_bytes(src.read_bytes())
+    # A copy without its record is still the shipped abs network, known by its hash.
+    np.testing.assert_array_equal(dbox.predict(ex, weights=copy), shipped)
+    record = json.loads(src.with_suffix(".json").read_text())
+    for formulation, words in (
+        ("rel", "configuration abs trains formulation abs"),
+        ("bogus", "not one of rel, abs"),
+    ):
+        record["config"]["formulation"] = formulation
+        copy.with_suffix(".json").write_text(json.dumps(record))
+        with pytest.raises(DataError, match="does not fit its weights") as info:
+            dbox.predict(ex, weights=copy)
+        assert words in info.value.render()
+    record["config"] = {"name": "p", "formulation": "rel"}  # a consistent record of another configuration
+    copy.with_suffix(".json").write_text(json.dumps(record))
+    with pytest.raises(DataError, match="these are the shipped abs weights, of formulation abs"):
+        dbox.predict(ex, weights=copy)
+    assert dbox.predict_report(ex, config="abs")[1]["formulation"] == "abs"

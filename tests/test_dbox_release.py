@@ -54,3 +54,34 @@ def test_the_release_checkpoint_gives_the_published_numbers(
     got = dbox_scores(paper_data_dir, tmp_path, "odmd-paper", split, "--weights", str(release_checkpoint))
     far = {k: (round(got[k], 4), v) for k, v in PUBLISHED[split].items() if abs(got[k] - v) > TOLERANCE}
     assert not far, f"{split}: (measured, published) beyond {TOLERANCE}: {far}"
+
+
+def test_a_damaged_copy_of_the_release_checkpoint_is_refused(
+    release_checkpoint: Path, paper_data_dir: Path, tmp_path: Path
+) -> None:
+    from click.testing import CliRunner
+
+    from odmd_bench.cli.main import cli
+
+    data = bytearray(release_checkpoint.read_bytes())
+    data[-3000] ^= 1  # one bit inside a tensor: torch would load it
+    copy = tmp_path / release_checkpoint.name
+    copy.write_bytes(bytes(data))
+    args = [
+        "baseline",
+        "dbox",
+        "--benchmark",
+        "odmd-paper",
+        "--data-dir",
+        str(paper_data_dir),
+        "-o",
+        str(tmp_path / "p.csv"),
+    ]
+    r = CliRunner().invoke(cli, [*args, "--weights", str(copy)])  # known by its name: its pinned hash
+    assert r.exit_code == 2 and "do not match the release's hash in splits/odmd-original.json" in r.stderr
+    renamed = tmp_path / "mine.pt"
+    renamed.write_bytes(bytes(data))
+    good = hashlib.sha256(release_checkpoint.read_bytes()).hexdigest()
+    r = CliRunner().invoke(cli, [*args, "--weights", str(renamed), "--weights-sha256", good])
+    assert r.exit_code == 2 and "do not match the given weights_sha256" in r.stderr
+    assert not (tmp_path / "p.csv").exists()

@@ -233,7 +233,7 @@ def test_a_users_weights_are_checked_against_a_given_hash_and_the_hash_is_report
     ex = _examples(5, "odmd", 11)
     depths, counts = dbox.predict_report(ex, weights=path)
     report = dbox.provenance(ex, weights=path)
-    assert counts == {"n": 5, "no_detection": 0, **report}  # the report says which weights ran
+    assert counts == {"n": 5, "no_detection": 0, **report, "formulation": "rel"}  # which weights ran, and how
     assert report["weights_sha256"] == sha and report["config"] == "custom"
     assert report["weights"] == str(path)
     np.testing.assert_array_equal(dbox.predict(ex, weights=path, weights_sha256=sha.upper()), depths)

@@ -12,11 +12,16 @@ from click.testing import CliRunner
 
 torch = pytest.importorskip("torch")
 
+from odmd_bench_baselines.dbox import load_model  # noqa: E402
 from odmd_bench_baselines.dbox.model import checkpoint_shapes  # noqa: E402
 from odmd_bench_baselines.dbox.select import select_runs, write_selection  # noqa: E402
+from odmd_bench_baselines.dbox.train import validation_scores  # noqa: E402
 
+import odmd_bench  # noqa: E402
 from odmd_bench import DataError, UsageError  # noqa: E402
 from odmd_bench.cli.main import cli  # noqa: E402
+from odmd_bench.data.io import write_sets  # noqa: E402
+from odmd_bench.data.registry import set_file  # noqa: E402
 
 SETS = ("normal", "perturb", "robot", "driving")
 
@@ -151,21 +156,65 @@ def test_usage_errors(two_runs: tuple[Path, Path], tmp_path: Path) -> None:
         write_selection(select_runs([a, b], "p-z"), b)
 
 
+@pytest.fixture
+def tiny_val(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> dict[str, odmd_bench.Examples]:
+    """A small odms-detection val split in its own data folder (written, so not the pinned one)."""
+    sets = {s: odmd_bench.generate(30, "odms", "both", rng=i) for i, s in enumerate(SETS)}
+    write_sets(set_file("odms-detection", "val", tmp_path / "data"), sets)
+    monkeypatch.setenv("ODMD_BENCH_DATA", str(tmp_path / "data"))
+    return odmd_bench.load_split("val", "odms-detection")
+
+
+def _measured(run: Path, val: dict[str, odmd_bench.Examples]) -> Path:
+    """``run`` with each record's val scores replaced by what its checkpoint gives on ``val``."""
+    for weights in run.glob("dbox_p-z*.pt"):
+        model, form = load_model(weights)
+        record = json.loads(weights.with_suffix(".json").read_text())
+        record["val_mean_percent_error"] = validation_scores(model, val, form, torch.device("cpu"))
+        weights.with_suffix(".json").write_text(json.dumps(record))
+    return run
+
+
 def test_the_command_prints_the_choice_and_exits_2_on_bad_runs(
-    two_runs: tuple[Path, Path], tmp_path: Path
+    two_runs: tuple[Path, Path], tmp_path: Path, tiny_val: dict[str, odmd_bench.Examples]
 ) -> None:
-    a, b = two_runs
+    a, b = (_measured(r, tiny_val) for r in two_runs)
     runner = CliRunner()
     result = runner.invoke(
         cli, ["select-dbox", str(a), str(b), "--config", "p-z", "--out", str(tmp_path / "w")]
     )
     assert result.exit_code == 0, result.output
-    assert "robot: " in result.output and "candidates 10.000, 9.000" in result.output
+    assert (
+        "measured the val scores of 10 checkpoints again on odms-detection val: as recorded" in result.output
+    )
+    robot = sorted(
+        json.loads((r / "dbox_p-z.robot.json").read_text())["val_mean_percent_error"]["robot"] for r in (a, b)
+    )
+    assert (
+        f"candidates {robot[0]:.3f}, {robot[1]:.3f}" in result.output
+        or f"{robot[1]:.3f}, {robot[0]:.3f}" in result.output
+    )
     assert (tmp_path / "w" / "dbox_p-z.pt").is_file()
     bad = runner.invoke(
         cli, ["select-dbox", str(tmp_path / "w"), "--config", "ns-z", "--out", str(tmp_path / "x")]
     )
     assert bad.exit_code == 2 and "Traceback" not in bad.output, bad.output
+
+
+def test_a_record_whose_score_its_weights_do_not_give_is_refused(
+    two_runs: tuple[Path, Path], tmp_path: Path, tiny_val: dict[str, odmd_bench.Examples]
+) -> None:
+    a, b = (_measured(r, tiny_val) for r in two_runs)
+    record = json.loads((b / "dbox_p-z.json").read_text())
+    record["val_mean_percent_error"]["all"] = 0.5  # a forged best score
+    (b / "dbox_p-z.json").write_text(json.dumps(record))
+    result = CliRunner().invoke(
+        cli, ["select-dbox", str(a), str(b), "--config", "p-z", "--out", str(tmp_path / "w")]
+    )
+    assert result.exit_code == 2, result.output
+    assert "records state val scores their weights do not give" in result.output
+    assert f"{b / 'dbox_p-z.json'}: val all 0.5000 recorded" in result.output
+    assert not (tmp_path / "w").exists()
 
 
 def test_every_shipped_selection_follows_the_rule_on_its_recorded_candidates() -> None:
@@ -189,3 +238,14 @@ def test_every_shipped_selection_follows_the_rule_on_its_recorded_candidates() -
         assert record["command"] == first["command"], path.name
         assert record["select_command"].startswith("odmd-bench select-dbox "), path.name
     assert checked >= 15  # the three z configurations: overall and four sets each
+
+
+def test_a_run_that_stopped_early_or_names_odd_sets_is_refused(tmp_path: Path) -> None:
+    sets = {"normal": 11.0, "perturb": 19.0, "robot": 10.0, "driving": 24.0}
+    done = _run(tmp_path / "done", 1, 17.5, sets, steps=200, steps_done=200)
+    killed = _run(tmp_path / "killed", 2, 12.0, sets, steps=200, steps_done=40)
+    with pytest.raises(DataError, match=r"stopped at step 40 of 200 \(killed\?\)"):
+        select_runs([done, killed], "p-z")
+    odd = _run(tmp_path / "odd", 3, 17.0, sets, val_sets=["normal", "../../evil"])
+    with pytest.raises(DataError, match="has no list of val_sets"):
+        select_runs([odd], "p-z")

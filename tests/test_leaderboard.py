@@ -315,6 +315,51 @@ def test_plot_is_written(board: Path, v1_data_dir: Path) -> None:
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and f"wrote {png}" in said
 
 
+def test_two_entries_of_one_name_take_one_row(
+    board: Path, v1_data_dir: Path, v1_preds: dict[str, Path]
+) -> None:
+    _add(board, v1_data_dir, v1_preds["expansion"], "expansion-2", name="EXPANSION")
+    boards, problems = lb.collect(board, v1_data_dir, n_resamples=FAST)
+    assert problems == [
+        "expansion-2/odmd-v1-test: has the name 'EXPANSION' of expansion/odmd-v1-test on odmd-v1 test; "
+        "rename one of them"
+    ]
+    (v1,) = [b for b in boards if b.rows]
+    assert sorted(r.entry.method for r in v1.rows) == ["box-ls", "expansion"]
+
+
+def test_names_cannot_make_links_or_html_in_the_table(
+    board: Path, v1_data_dir: Path, v1_preds: dict[str, Path]
+) -> None:
+    for entry in (board / lb.ENTRIES).iterdir():
+        shutil.rmtree(entry)
+    _add(board, v1_data_dir, v1_preds["box_ls"], "box-ls", name="x](http://evil.example) <b>bold</b>")
+    md = lb.build(board, v1_data_dir, n_resamples=FAST).markdown
+    assert "[x\\](http://evil.example) &lt;b&gt;bold&lt;/b&gt;](entries/box-ls/odmd-v1-test/)" in md
+
+
+def test_a_failed_write_leaves_every_file_of_the_board_as_it_was(
+    board: Path, v1_data_dir: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    pytest.importorskip("matplotlib")
+    import errno
+
+    from odmd_bench.leaderboard import plot as plot_module
+
+    built = lb.build(board, v1_data_dir, n_resamples=FAST)
+    for name in (lb.MARKDOWN, lb.JSON_FILE):
+        (board / name).write_text("OLD\n")
+
+    def full_disk(*args: object, **kwargs: object) -> None:
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(plot_module, "plot_boards", full_disk)
+    with pytest.raises(OSError):
+        lb.write(board, built)
+    assert all((board / name).read_text() == "OLD\n" for name in (lb.MARKDOWN, lb.JSON_FILE))
+    assert not [p for p in board.iterdir() if p.name.endswith(".tmp")]
+
+
 def test_build_without_matplotlib_says_so(
     board: Path, v1_data_dir: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:

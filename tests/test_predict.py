@@ -446,3 +446,11 @@ def test_the_documented_example_gives_the_documented_depths() -> None:
         if method == "box-ls":
             summary = r.stderr.splitlines()[-4:]
             assert all(line in doc for line in summary)
+
+
+def test_the_estimates_never_replace_the_sequences_file(tmp_path: Path) -> None:
+    seqs = tmp_path / "s.csv"
+    seqs.write_bytes((DOCS / "sequences-example.csv").read_bytes())
+    r = _invoke(["predict", str(seqs), "--method", "box-ls", "--image-size", "4032", "3024", "-o", str(seqs)])
+    assert r.exit_code == 2 and "is the sequences file being read" in r.stderr
+    assert seqs.read_bytes() == (DOCS / "sequences-example.csv").read_bytes()

@@ -39,7 +39,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from odmd_bench import DataError, Examples, UsageError
+from odmd_bench import DataError, Examples, UsageError, known_originals
 
 if TYPE_CHECKING:
     from odmd_bench_baselines.dbox.model import DBox
@@ -159,6 +159,15 @@ def _recorded_sha256(record: Path) -> str:
     return value
 
 
+def _release_checkpoints() -> dict[str, str]:
+    """``{file name: SHA-256}`` of the original release's DBox checkpoints, as pinned."""
+    return {
+        Path(e["path"]).name: sha
+        for sha, e in known_originals().items()
+        if e.get("kind") == "dbox-checkpoint"
+    }
+
+
 def verify_weights(
     path: str | os.PathLike[str], weights_sha256: str | None = None, require_record: bool = False
 ) -> tuple[bytes, str]:
@@ -199,6 +208,12 @@ def verify_weights(
             raise UsageError(f"weights_sha256 must be 64 hex digits, got {weights_sha256!r}")
     elif record.is_file():
         expected, source = _recorded_sha256(record), f"its record {record}"
+    elif path.name in _release_checkpoints():
+        # The original release's own checkpoint, known by its name: its pinned hash.
+        expected, source = (
+            _release_checkpoints()[path.name],
+            "the release's hash in splits/odmd-original.json",
+        )
     elif require_record:
         raise DataError(
             f"the shipped weights {path} have no record {record.name} beside them to check "
@@ -207,12 +222,12 @@ def verify_weights(
     else:
         return data, actual
     if actual != expected:
-        fix = (
-            "reinstall odmd-bench to restore the shipped weights"
-            if path.parent == WEIGHTS_DIR or path.parent.parent == WEIGHTS_DIR
-            else "restore the file (or retrain it with odmd-bench train-dbox); if it was changed "
-            "on purpose, record its new hash"
-        )
+        if path.parent == WEIGHTS_DIR or path.parent.parent == WEIGHTS_DIR:
+            fix = "reinstall odmd-bench to restore the shipped weights"
+        elif source.startswith("the release's"):
+            fix = "copy the file again from the original release (results/model/DBox_pretrained/)"
+        else:
+            fix = "restore the file (or retrain it with odmd-bench train-dbox); if it was changed on purpose, record its new hash"
         raise DataError(
             f"DBox weights {path} do not match {source}",
             [f"expected SHA-256 {expected}", f"actual SHA-256   {actual}", f"fix: {fix}"],
@@ -257,14 +272,26 @@ def _load(
         state = torch.load(io.BytesIO(data), map_location="cpu", weights_only=True)
     except Exception as e:  # torch/pickle raise many kinds for a damaged or foreign file
         raise DataError(
-            f"{path} is not a loadable DBox checkpoint (read with weights_only=True): "
-            f"{type(e).__name__}: {str(e).splitlines()[0] if str(e) else ''}"
+            f"{path} is not a loadable DBox checkpoint (read with weights_only=True): {load_failure(e)}"
         ) from None
     check_state_dict(state, str(path))
     model = DBox()
     model.load_state_dict({k: v.to(torch.float32) for k, v in state.items()})
     model.eval()
-    return model, _formulation(path), sha
+    return model, _formulation(path, sha), sha
+
+
+def load_failure(e: BaseException) -> str:
+    """Why ``torch.load(..., weights_only=True)`` failed, in one line.
+
+    torch's own text advises loading again with ``weights_only=False``, which runs any
+    code the file holds; it is replaced by what it means.
+    """
+    text = str(e).strip()
+    if "Weights only load failed" in text:
+        return "it holds Python objects besides tensors, which a safe load refuses (a DBox checkpoint holds tensors only)"
+    first = text.splitlines()[0][:200] if text else "the file ends early or is empty"
+    return f"{type(e).__name__}: {first}"
 
 
 def check_state_dict(state: Any, where: str = "checkpoint") -> None:
@@ -301,16 +328,66 @@ def check_state_dict(state: Any, where: str = "checkpoint") -> None:
         raise DataError(f"{where} is not a DBox checkpoint in the original layout", problems)
 
 
-def _formulation(path: Path) -> str:
+def _formulation(path: Path, sha: str) -> str:
+    """The input formulation of the checkpoint at ``path`` (SHA-256 ``sha``).
+
+    A shipped checkpoint's comes from its configuration, named by its file name, never
+    from its record alone; a copy of one, found by its hash, likewise. Any other's comes
+    from the record beside it, which must name a formulation its configuration trains;
+    without a record it is ``rel`` (the original release's checkpoint is f_Rel).
+
+    Raises:
+        DataError: a record that names no valid formulation, or one that disagrees with
+            its configuration or with the shipped file's.
+    """
+    from odmd_bench_baselines.dbox.model import FORMULATIONS
+    from odmd_bench_baselines.dbox.train import CONFIGS as TRAIN_CONFIGS
+
+    shipped = _shipped_config(path, sha)
     record = path.with_suffix(".json")
+    named = None
     if record.is_file():
         try:
-            config = json.loads(record.read_text(encoding="utf-8")).get("config", {})
+            config = json.loads(record.read_text(encoding="utf-8")).get("config")
+        except (OSError, ValueError, AttributeError) as e:
+            raise DataError(f"cannot read the record {record}: {type(e).__name__}") from None
+        named = config.get("formulation") if isinstance(config, dict) else None
+        name = config.get("name") if isinstance(config, dict) else None
+        problems = []
+        if named not in FORMULATIONS:
+            problems.append(f"config.formulation is {named!r}, not one of {', '.join(FORMULATIONS)}")
+        elif name in TRAIN_CONFIGS and TRAIN_CONFIGS[name].formulation != named:
+            problems.append(
+                f"configuration {name} trains formulation {TRAIN_CONFIGS[name].formulation}, not {named}"
+            )
+        elif shipped is not None and TRAIN_CONFIGS[shipped].formulation != named:
+            problems.append(
+                f"these are the shipped {shipped} weights, of formulation {TRAIN_CONFIGS[shipped].formulation}"
+            )
+        if problems:
+            raise DataError(
+                f"the record {record} does not fit its weights; restore it or reinstall odmd-bench", problems
+            )
+    if shipped is not None:
+        return TRAIN_CONFIGS[shipped].formulation
+    return str(named) if named is not None else "rel"
+
+
+def _shipped_config(path: Path, sha: str) -> str | None:
+    """The configuration of a shipped checkpoint: by its place and name, or by its hash."""
+    here = path.resolve().parent
+    if here in (WEIGHTS_DIR.resolve(), *(d.resolve() for d in WEIGHTS_DIR.glob("selected-on-*"))):
+        name = path.name.removeprefix("dbox_").split(".")[0]
+        if name in CONFIGS:
+            return name
+    for rec in WEIGHTS_DIR.rglob("dbox_*.json"):
+        try:
+            if json.loads(rec.read_text(encoding="utf-8")).get("weights_sha256") == sha:
+                name = rec.name.removeprefix("dbox_").split(".")[0]
+                return name if name in CONFIGS else None
         except (OSError, ValueError, AttributeError):
-            return "rel"
-        if isinstance(config, dict) and config.get("formulation") in ("rel", "abs"):
-            return str(config["formulation"])
-    return "rel"
+            continue
+    return None
 
 
 def resolve_weights(
@@ -339,18 +416,23 @@ def resolve_weights(
         DataError: no shipped weights for the configuration (the shipped ones are
             listed), or no per-set checkpoint for the set.
     """
+    problems = []
     if selection not in SELECTIONS:
-        raise UsageError(f"unknown DBox selection {selection!r}; expected one of {', '.join(SELECTIONS)}")
+        problems.append(f"unknown DBox selection {selection!r}; expected one of {', '.join(SELECTIONS)}")
     if config is not None and weights is not None:
-        raise UsageError("give DBox either a configuration or a weights file, not both")
+        problems.append("give DBox either a configuration or a weights file, not both")
     if config is not None and config not in CONFIGS:
-        raise UsageError(f"unknown DBox configuration {config!r}; expected one of {', '.join(CONFIGS)}")
+        problems.append(f"unknown DBox configuration {config!r}; expected one of {', '.join(CONFIGS)}")
     set_name = examples.attrs.get("set")
     if selection == "per-set" and not isinstance(set_name, str):
-        raise UsageError(
-            "per-set selection needs to know which set the examples are "
-            "(examples.attrs['set']); load them with odmd_bench.load_split"
+        problems.append(
+            "per-set selection runs each benchmark set's own checkpoint, and these examples name no "
+            "set (examples.attrs['set']): use it with odmd-bench baseline, or odmd_bench.load_split"
         )
+    if len(problems) == 1:
+        raise UsageError(problems[0])
+    if problems:
+        raise UsageError("DBox cannot run with these options", problems)
     if weights is not None:
         path = Path(weights)
         if selection == "per-set":
@@ -457,7 +539,7 @@ def predict_report(
         "n": len(examples),
         "no_detection": int((~examples.detected.any(axis=1)).sum()),
     }
-    return depths, {**report, **described, "weights_sha256": sha}
+    return depths, {**report, **described, "weights_sha256": sha, "formulation": formulation or form}
 
 
 def provenance(

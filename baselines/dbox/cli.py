@@ -149,20 +149,29 @@ def train_dbox(
     required=True,
     help="Folder for the chosen checkpoints and records (e.g. baselines/dbox/weights).",
 )
-def select_dbox(runs: tuple[Path, ...], config: str, out: Path) -> None:
+@data_dir_option
+def select_dbox(runs: tuple[Path, ...], config: str, out: Path, data_dir: Path | None) -> None:
     """Choose among several train-dbox runs of one configuration, on val only.
 
     The overall checkpoint is the run with the lowest best val All; each per-set
     checkpoint is the run with the lowest best val score on that set (ties: the run
-    given first). Every candidate is hash-checked; the chosen files are copied with
-    their records, which list every candidate and its score.
+    given first). Every candidate is hash-checked and its recorded val scores are
+    measured again on the runs' val split; the chosen files are copied with their
+    records, which list every candidate and its score.
     """
-    from odmd_bench_baselines.dbox.select import select_runs, write_selection
+    from odmd_bench_baselines.dbox.select import select_runs, verify_scores, write_selection
+
+    import odmd_bench
 
     command = shlex.join(
         ["odmd-bench", "select-dbox", *map(str, runs), "--config", config, "--out", str(out)]
     )
     selection = select_runs(runs, config)
+    benchmark = selection.candidates["all"][0].record.get("val_benchmark")
+    if not isinstance(benchmark, str) or benchmark not in BENCHMARKS:
+        raise odmd_bench.DataError(f"the runs name no known val benchmark ({benchmark!r})")
+    n = verify_scores(selection, odmd_bench.load_split("val", benchmark, data_dir))
+    click.echo(f"measured the val scores of {n} checkpoints again on {benchmark} val: as recorded")
     write_selection(selection, out, command)
     for key, cand in selection.chosen.items():
         others = ", ".join(f"{c.score:.3f}" for c in selection.candidates[key])

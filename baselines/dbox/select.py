@@ -8,7 +8,8 @@ All is lowest, and each per-set checkpoint is the run whose best val score on th
 is lowest. Ties go to the run given first. Test sets are never read.
 
 Every candidate is hash-checked against its record before it is compared or copied,
-and the chosen files are copied byte for byte (so their recorded ``weights_sha256``
+its val scores can be measured again (:func:`verify_scores`; ``select-dbox`` always
+does), and the chosen files are copied byte for byte (so their recorded ``weights_sha256``
 still holds). The record written beside each chosen file is the run's own, with a
 ``selected_from`` list: every candidate run, its training command and the val score it
 was compared on. An earlier selection's output folder may be a candidate (new runs
@@ -19,15 +20,21 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Sequence
+import re
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from odmd_bench_baselines.dbox import CONFIGS, per_set_path, verify_weights
 
-from odmd_bench import DataError, StorageError, UsageError, atomic_write
+from odmd_bench import DataError, Examples, StorageError, UsageError, atomic_write
 
+#: What a set's name may be (it becomes part of a file name).
+_SET_NAME = re.compile(r"[a-z0-9_-]{1,40}")
+#: How far a val score measured again may be from its record, in percentage points:
+#: the CPU kernels of two machines differ in the last bits of float32.
+SCORE_TOLERANCE = 2e-3
 #: Record fields that must agree between candidate runs of one configuration.
 _SAME = ("config", "val_benchmark", "val_sets", "generator_version", "batch_size")
 
@@ -107,6 +114,13 @@ def select_runs(runs: Sequence[str | Path], config: str) -> Selection:
             overall.append(Candidate(run, weights, record, _score(record, "all", weights)))
         except DataError as e:
             problems.append(str(e))
+            continue
+        done, planned = record.get("steps_done"), record.get("steps")
+        if record.get("selected_from") is None and done != planned:
+            problems.append(
+                f"{run}: the run stopped at step {done} of {planned} (killed?); finish it with "
+                "train-dbox --resume, or leave it out"
+            )
     if problems:
         raise DataError(f"cannot select DBox {config} weights", problems)
     first = overall[0].record
@@ -118,8 +132,10 @@ def select_runs(runs: Sequence[str | Path], config: str) -> Selection:
                     f"{first.get(key)!r}"
                 )
     val_sets = first.get("val_sets")
-    if not isinstance(val_sets, list) or not all(isinstance(s, str) for s in val_sets):
-        problems.append(f"{overall[0].weights.with_suffix('.json')} has no list of val_sets")
+    if not isinstance(val_sets, list) or not all(
+        isinstance(s, str) and _SET_NAME.fullmatch(s) for s in val_sets
+    ):
+        problems.append(f"{overall[0].weights.with_suffix('.json')} has no list of val_sets (set names)")
         val_sets = []
     if problems:
         raise DataError(f"cannot select DBox {config} weights: the runs are not comparable", problems)
@@ -139,6 +155,48 @@ def select_runs(runs: Sequence[str | Path], config: str) -> Selection:
         raise DataError(f"cannot select DBox {config} weights", problems)
     chosen = {key: min(cands, key=lambda c: c.score) for key, cands in candidates.items()}
     return Selection(config, chosen, candidates)
+
+
+def verify_scores(selection: Selection, val_sets: Mapping[str, Examples]) -> int:
+    """Measure every candidate's val score again; refuse records that state another.
+
+    The choice rests on the scores in the runs' records; they are compared only once
+    each checkpoint, on ``val_sets`` (the runs' val split), gives what its record says
+    (within :data:`SCORE_TOLERANCE`).
+
+    Returns:
+        The number of checkpoints measured.
+
+    Raises:
+        DataError: ``val_sets`` are not the runs' val sets, or a record states a score
+            its checkpoint does not give (every one named).
+    """
+    import torch
+    from odmd_bench_baselines.dbox import load_model
+    from odmd_bench_baselines.dbox.train import validation_scores
+
+    expected = selection.candidates["all"][0].record.get("val_sets")
+    if list(val_sets) != expected:
+        raise DataError(f"the val sets given are {list(val_sets)}, the runs were validated on {expected}")
+    measured: dict[Path, dict[str, float]] = {}
+    problems = []
+    for key, cands in selection.candidates.items():
+        for cand in cands:
+            if cand.weights not in measured:
+                model, formulation = load_model(cand.weights)
+                measured[cand.weights] = validation_scores(model, val_sets, formulation, torch.device("cpu"))
+            got = measured[cand.weights][key]
+            if not abs(got - cand.score) <= SCORE_TOLERANCE:
+                problems.append(
+                    f"{cand.weights.with_suffix('.json')}: val {key} {cand.score:.4f} recorded, "
+                    f"{got:.4f} measured"
+                )
+    if problems:
+        raise DataError(
+            f"cannot select DBox {selection.config} weights: records state val scores their weights do not give",
+            problems,
+        )
+    return len(measured)
 
 
 def _listed(cand: Candidate, key: str) -> list[dict[str, Any]]:

@@ -46,11 +46,20 @@ from typing import Any, TextIO
 
 import numpy as np
 import torch
-from odmd_bench_baselines.dbox import per_set_path
+from odmd_bench_baselines.dbox import load_failure, per_set_path
 from odmd_bench_baselines.dbox.model import DBox, make_inputs, predict_depth, use_onednn
 
 import odmd_bench
-from odmd_bench import DataError, Examples, UsageError, atomic_path, atomic_write, file_sha256, get_benchmark
+from odmd_bench import (
+    DataError,
+    Examples,
+    StorageError,
+    UsageError,
+    atomic_path,
+    atomic_write,
+    file_sha256,
+    get_benchmark,
+)
 
 BATCH_SIZE = 512
 LEARNING_RATE = 1e-3
@@ -298,6 +307,13 @@ def train(
         )
     if resume and not state_path.exists():
         raise UsageError(f"nothing to resume: {state_path} does not exist")
+    if not resume and out.is_dir():
+        held = sorted(f.name for f in out.iterdir() if f.name.startswith("dbox_") or f.name == "log.jsonl")
+        if held:
+            raise UsageError(
+                f"{out} already holds weights or a log ({', '.join(held[:5])}{', ...' if len(held) > 5 else ''}), "
+                "which a new run would replace; choose an empty or new --out"
+            )
     if val_sets is None:
         val_sets = odmd_bench.load_split("val", cfg.val_benchmark, data_dir)
     val_names = list(val_sets)
@@ -344,15 +360,29 @@ def train(
                 if state["settings"].get(k) != settings[k]
             ]
             raise UsageError(f"cannot resume {out}: the options differ from the run's", diff)
-        model.load_state_dict(state["model"])
-        optimizer.load_state_dict(state["optimizer"])
-        rng.bit_generator.state = json.loads(state["rng"])
-        step = int(state["step"])
-        best = json.loads(state["best"])
-        best.setdefault("per_set", {})
-        best.setdefault("cpu_s", 0.0)
-        best.setdefault("wall_s", 0.0)
-    out.mkdir(parents=True, exist_ok=True)
+        try:
+            model.load_state_dict(state["model"])
+            optimizer.load_state_dict(state["optimizer"])
+            rng.bit_generator.state = json.loads(state["rng"])
+            step = int(state["step"])
+            best = json.loads(state["best"])
+            best.setdefault("per_set", {})
+            best.setdefault("cpu_s", 0.0)
+            best.setdefault("wall_s", 0.0)
+        except Exception as e:  # torch, json and numpy raise many kinds for a damaged state
+            raise DataError(
+                f"{state_path} is not a usable DBox training state ({load_failure(e)}); "
+                "start the run again in a new --out"
+            ) from None
+        if not 0 <= step <= steps or not isinstance(best, dict) or not isinstance(best.get("scores"), dict):
+            raise DataError(f"{state_path} is not a usable DBox training state (step {step} of {steps})")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise StorageError(
+            f"cannot create the run folder {out}: {e.strerror or type(e).__name__}; give --out a folder "
+            "you can write"
+        ) from None
 
     bar = _Progress(progress, steps, progress_every)
     bar.start_step = step
@@ -490,7 +520,9 @@ def _load_state(path: Path) -> dict[str, Any]:
     try:
         state = torch.load(path, map_location="cpu", weights_only=True)
     except Exception as e:  # torch raises many kinds for a damaged file
-        raise DataError(f"{path} is not a readable DBox training state: {e}") from None
+        raise DataError(f"{path} is not a readable DBox training state: {load_failure(e)}") from None
+    if not isinstance(state, dict) or not isinstance(state.get("settings"), dict):
+        raise DataError(f"{path} is not a DBox training state (got {type(state).__name__})")
     missing = [k for k in ("model", "optimizer", "rng", "step", "best", "settings") if k not in state]
     if missing:
         raise DataError(f"{path} is not a DBox training state", [f"missing keys: {', '.join(missing)}"])

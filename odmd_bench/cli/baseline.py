@@ -35,7 +35,7 @@ def _list_methods(ctx: click.Context, _param: click.Parameter, value: bool) -> N
         except UsageError as e:  # a broken plug-in is listed as such, not a failure of --list
             click.echo(f"{name}: not usable: {e}")
             continue
-        taken = [f"--{k}" for k in METHOD_OPTIONS if method.accepts(k)]
+        taken = [f"--{k.replace('_', '-')}" for k in METHOD_OPTIONS if method.accepts(k)]
         click.echo(
             f"{name}: {method.target} (from {method.source})"
             + (f"; takes {' '.join(taken)}" if taken else "")
@@ -85,6 +85,7 @@ def baseline(
     output: Path | None,
     data_dir: Path | None,
     weights: Path | None,
+    weights_sha256: str | None,
     config: str | None,
     selection: str | None,
     mode: str | None,
@@ -104,7 +105,9 @@ def baseline(
     if misplaced:
         raise UsageError("refusing to write the predictions", misplaced)
     method = methods.load(name)
-    options = given_options(method, weights=weights, config=config, selection=selection, mode=mode)
+    options = given_options(
+        method, weights=weights, weights_sha256=weights_sha256, config=config, selection=selection, mode=mode
+    )
 
     sets = load_split(split, benchmark, data_dir)
     depths: dict[str, np.ndarray] = {}

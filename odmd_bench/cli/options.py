@@ -64,19 +64,27 @@ def data_folder_problems(outputs: Mapping[str, Path | None], data_dir: Path | No
 
 
 #: The options a method may take; each is passed only to a method whose ``predict`` does.
-METHOD_OPTIONS: tuple[str, ...] = ("weights", "config", "selection", "mode")
+METHOD_OPTIONS: tuple[str, ...] = ("weights", "weights_sha256", "config", "selection", "mode")
 
 F = TypeVar("F", bound=Callable[..., Any])
 
 
 def method_options(f: F) -> F:
-    """Add ``--weights``, ``--config``, ``--selection`` and ``--mode`` to a command running a method."""
+    """Add ``--weights``, ``--weights-sha256``, ``--config``, ``--selection`` and ``--mode`` to a command running a method."""
     decorators = [
         click.option(
             "--weights",
             type=click.Path(exists=True, dir_okay=False, path_type=Path),
             default=None,
             help="Checkpoint file, for the methods that load one (see odmd-bench baseline --list).",
+        ),
+        click.option(
+            "--weights-sha256",
+            "weights_sha256",
+            default=None,
+            metavar="HEX",
+            help="The SHA-256 the --weights file must have (refused otherwise); a file with a JSON "
+            "record beside it, or the original release's checkpoint, is checked without it.",
         ),
         click.option(
             "--config",
@@ -109,7 +117,7 @@ def given_options(method: Any, **values: Any) -> dict[str, Any]:
     from odmd_bench import methods
 
     options = {k: v for k, v in values.items() if v is not None}
-    methods.check_options(method, options, spell=lambda k: f"--{k}")
+    methods.check_options(method, options, spell=lambda k: f"--{k.replace('_', '-')}")
     return options
 
 

@@ -11,7 +11,8 @@ from typing import Any
 
 import click
 
-from odmd_bench.cli.options import given_options, method_options
+from odmd_bench.cli.options import given_options, method_options, same_file
+from odmd_bench.errors import UsageError
 
 
 def default_output(source: str, method: str) -> Path:
@@ -73,6 +74,7 @@ def predict(
     intrinsics: tuple[float, float, float, float] | None,
     output: str | None,
     weights: Path | None,
+    weights_sha256: str | None,
     config: str | None,
     selection: str | None,
     mode: str | None,
@@ -94,8 +96,19 @@ def predict(
     from odmd_bench.data.sequences import read_sequences
     from odmd_bench.predict import format_depths, predict_sequences
 
+    target = (
+        None
+        if output == "-"
+        else Path(output)
+        if output is not None
+        else default_output(sequences, method_name)
+    )
+    if target is not None and str(sequences) != "-" and same_file(target, Path(sequences)):
+        raise UsageError(f"-o {target} is the sequences file being read; write the estimates elsewhere")
     method = methods.load(method_name)
-    options = given_options(method, weights=weights, config=config, selection=selection, mode=mode)
+    options = given_options(
+        method, weights=weights, weights_sha256=weights_sha256, config=config, selection=selection, mode=mode
+    )
 
     seqs = read_sequences(sequences, image_size, intrinsics)
     result = predict_sequences(seqs, method, **options)

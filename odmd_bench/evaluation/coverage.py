@@ -139,7 +139,7 @@ def _place(
     gaps = np.flatnonzero(~seen)
     if gaps.size == n:
         hint = (
-            "it was named by --sets"
+            "it was asked for"
             if sets is not None
             else f"to score only some sets, name them, e.g. --sets {','.join(x for x in scope if x != s)}"
         )

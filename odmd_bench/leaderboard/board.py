@@ -172,6 +172,25 @@ def _problem_lines(err: OdmdError) -> list[str]:
     return [err.message, *(f"  {p}" for p in err.problems)]
 
 
+def _duplicates(spec: BoardSpec, scored: dict[str, tuple[Entry, EvaluationResult]]) -> list[str]:
+    """Drop from ``scored`` each entry whose name an earlier one has; a problem line for each.
+
+    Two rows of one name could not be told apart. (Identical estimates under two names
+    are allowed: they share a rank group.)
+    """
+    problems = []
+    seen: dict[str, Entry] = {}
+    for method, (entry, _) in list(scored.items()):
+        other = seen.setdefault(entry.meta.name, entry)
+        if other is not entry:
+            problems.append(
+                f"{entry.key}: has the name {entry.meta.name!r} of {other.key} on {spec.key}; "
+                "rename one of them"
+            )
+            del scored[method]
+    return problems
+
+
 def _score_board(
     spec: BoardSpec,
     entries: list[Entry],
@@ -194,6 +213,7 @@ def _score_board(
             scored[e.method] = (e, score_entry(e, examples))
         except ValidationError as err:
             problems += _problem_lines(err)
+    problems += _duplicates(spec, scored)
     if not scored:
         return None, problems
     ranked = rank_groups({m: r.percent_errors() for m, (_, r) in scored.items()}, n_resamples=n_resamples)
