@@ -877,9 +877,15 @@ def test_a_new_run_never_replaces_weights_and_a_damaged_state_is_refused(tmp_pat
     good = state.read_bytes()
     for bad in (5, {"settings": [1]}, {**torch.load(state, weights_only=True), "best": "{not json"}):
         torch.save(bad, state)
-        with pytest.raises(DataError, match="training state") as info:
+        with pytest.raises(DataError, match="training state|damaged since it was saved") as info:
             train("p", 10, tmp_path / "run", resume=True, **opts)  # type: ignore[arg-type]
         assert "weights_only` set to `False`" not in info.value.render()
+    state.write_bytes(good)
+    altered = torch.load(state, weights_only=True)
+    altered["model"]["W"][0, 0] += 1e-3  # what one flipped bit in a tensor does: torch loads it
+    torch.save(altered, state)
+    with pytest.raises(DataError, match="damaged since it was saved"):
+        train("p", 10, tmp_path / "run", resume=True, **opts)  # type: ignore[arg-type]
     state.write_bytes(good)
     train("p", 10, tmp_path / "run", resume=True, **opts)  # type: ignore[arg-type]
 

@@ -35,6 +35,7 @@ Files in the output folder:
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import json
 import math
 import sys
@@ -512,8 +513,38 @@ def _save_state(
         "best": json.dumps(best),
         "settings": dict(settings),
     }
+    state["digest"] = _state_digest(state)
     with atomic_path(path) as tmp:
         torch.save(state, tmp)
+
+
+def _state_digest(state: Mapping[str, Any]) -> str:
+    """SHA-256 of a training state's contents (tensors by dtype, shape and bytes), without ``digest``.
+
+    torch does not check the bytes of the tensors it loads; a state whose digest differs
+    has been damaged since it was saved.
+    """
+    h = hashlib.sha256()
+
+    def feed(value: Any) -> None:
+        if isinstance(value, torch.Tensor):
+            t = value.detach().to("cpu").contiguous()
+            h.update(f"T{t.dtype}{tuple(t.shape)}".encode())
+            h.update(t.numpy().tobytes())
+        elif isinstance(value, Mapping):
+            h.update(f"D{len(value)}".encode())
+            for k in sorted(value, key=repr):
+                h.update(repr(k).encode())
+                feed(value[k])
+        elif isinstance(value, list | tuple):
+            h.update(f"L{len(value)}".encode())
+            for v in value:
+                feed(v)
+        else:
+            h.update(f"V{value!r}".encode())
+
+    feed({k: v for k, v in state.items() if k != "digest"})
+    return h.hexdigest()
 
 
 def _load_state(path: Path) -> dict[str, Any]:
@@ -526,4 +557,10 @@ def _load_state(path: Path) -> dict[str, Any]:
     missing = [k for k in ("model", "optimizer", "rng", "step", "best", "settings") if k not in state]
     if missing:
         raise DataError(f"{path} is not a DBox training state", [f"missing keys: {', '.join(missing)}"])
+    # States saved before the digest have none; a state with one must match it.
+    if "digest" in state and state["digest"] != _state_digest(state):
+        raise DataError(
+            f"{path} has been damaged since it was saved (its contents no longer match their SHA-256); "
+            "start the run again in a new --out"
+        )
     return dict(state)

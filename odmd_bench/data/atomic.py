@@ -248,8 +248,8 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
     """
     target, replace = write_target(path)
     if not replace:
-        with _through_temp(target) as tmp:
-            yield tmp
+        with _through_temp(target) as through:
+            yield through
         return
     clean_stale_temps(target)
     fd, tmp = _temp_beside(target)

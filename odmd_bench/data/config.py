@@ -246,7 +246,7 @@ class GeneratorConfig:
                 f"cannot read configuration file {p}: {e.strerror or type(e).__name__}"
             ) from None
         try:
-            data = load_document(raw, kinds[suffix])
+            data: Any = load_document(raw, kinds[suffix])
         except DocumentError as e:
             raise ConfigError(f"{p}: not valid {kinds[suffix].upper()}: {e}") from None
         return cls.from_dict(data or {})
