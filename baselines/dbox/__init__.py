@@ -426,8 +426,8 @@ def resolve_weights(
     set_name = examples.attrs.get("set")
     if selection == "per-set" and not isinstance(set_name, str):
         problems.append(
-            "per-set selection runs each benchmark set's own checkpoint, and these examples name no "
-            "set (examples.attrs['set']): use it with odmd-bench baseline, or odmd_bench.load_split"
+            "per-set selection needs to know which set the examples are (examples.attrs['set']): "
+            "use it with odmd-bench baseline, or load them with odmd_bench.load_split"
         )
     if len(problems) == 1:
         raise UsageError(problems[0])
