@@ -49,3 +49,15 @@ def test_import_of_the_release(original_release, tmp_path) -> None:
 def test_unknown_benchmark_is_a_usage_error() -> None:
     r = CliRunner().invoke(cli, ["generate", "--benchmark", "odmd-paper"])
     assert r.exit_code == 2
+
+
+def test_info_of_another_programs_hdf5_file_says_so(tmp_path) -> None:
+    import h5py
+    import numpy as np
+
+    p = tmp_path / "theirs.h5"
+    with h5py.File(p, "w") as f:
+        f["x"] = np.arange(3)
+    for args in (["info", str(p)], ["info", "--stats", str(p)]):
+        r = CliRunner().invoke(cli, args)
+        assert r.exit_code == 2 and "not one odmd-bench writes" in r.stderr and "delete it" not in r.stderr

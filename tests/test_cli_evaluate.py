@@ -492,3 +492,17 @@ def test_a_closed_stdin_is_a_usage_error(data: Path, tmp_path: Path, command: li
     done = subprocess.run(["bash", "-c", line], capture_output=True, text=True, check=False)
     assert done.returncode == 2, done.stderr
     assert "standard input is closed" in done.stderr and "Traceback" not in done.stderr
+
+
+def test_spreadsheet_trailing_commas_and_utf16_without_a_mark(data: Path, tmp_path: Path) -> None:
+    p = preds(tmp_path, benchmark="odmd-paper")
+    lines = p.read_text().splitlines()
+    trail = tmp_path / "trail.csv"
+    trail.write_text("".join(line + ",,\n" for line in lines))  # empty columns, as spreadsheets save them
+    assert run("evaluate", str(trail))[0] == 0
+    u16 = tmp_path / "u16.csv"
+    u16.write_bytes(p.read_text().encode("utf-16-le"))
+    code, _, err = run("evaluate", str(u16))
+    assert (
+        code == 2 and "looks like UTF-16 text without a byte-order mark" in err and "save it as UTF-8" in err
+    )

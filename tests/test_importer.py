@@ -140,3 +140,12 @@ def test_malformed_metadata_of_an_unknown_file_is_refused(
         import_release(path, tmp_path / "data", allow_unknown=True)
     assert words in info.value.render()
     assert not (tmp_path / "data").exists()
+
+
+def test_a_pipe_named_like_an_original_is_refused_not_read(tmp_path) -> None:
+    import os
+
+    fifo = tmp_path / "test_normal.pk"
+    os.mkfifo(fifo)
+    with pytest.raises(ImportRefused, match="not a regular file nor a folder"):
+        import_release(fifo, tmp_path / "data")

@@ -269,6 +269,8 @@ def find_originals(source: str | os.PathLike[str]) -> list[Path]:
         if not files:
             raise ImportRefused(f"{p}: no .pk files found")
         return files
+    if p.exists():
+        raise ImportRefused(f"{p}: not a regular file nor a folder (a pipe, socket or device)")
     raise ImportRefused(f"{p}: no such file or folder")
 
 

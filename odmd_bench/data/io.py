@@ -313,12 +313,21 @@ def file_summary(path: str | os.PathLike[str]) -> dict[str, Any]:
     f = _open_h5(p, None)
     try:
         with f:
+            if "format_version" not in f.attrs:
+                raise DataError(
+                    f"{p} is an HDF5 file, but not one odmd-bench writes (it has no format_version); "
+                    "info reads the data files of odmd-bench generate and import"
+                )
             out: dict[str, Any] = {
                 "path": str(p),
                 "attrs": {k: plain_value(v) for k, v in f.attrs.items()},
                 "sets": {},
             }
             for name, g in f.items():
+                if not isinstance(g, h5py.Group):
+                    raise DataError(
+                        f"{p}: {name!r} is an array where a set (a group) belongs; {_DEFAULT_FIX}"
+                    )
                 out["sets"][name] = {
                     "arrays": {
                         k: (str(d.dtype), list(d.shape))
@@ -328,6 +337,8 @@ def file_summary(path: str | os.PathLike[str]) -> dict[str, Any]:
                     },
                     "attrs": {k: plain_value(v) for k, v in g.attrs.items()},
                 }
+    except OdmdError:
+        raise
     except _H5_FAILURES as e:
         raise _read_error(e, p, str(p), None) from None
     return out

@@ -33,6 +33,10 @@ def _misspelt(name: str, column: str) -> bool:
 def check_header(header: list[str], problems: Problems) -> dict[str, int] | None:
     """Column positions by name, or None (with ``problems`` added) when the header is wrong."""
     cols: dict[str, int] = {}
+    trailing = len(header) - len("".join("x" if h else " " for h in header).rstrip())
+    if trailing:
+        # Spreadsheets write empty columns as trailing commas: not columns of the format.
+        header = header[: len(header) - trailing]
     for i, name in enumerate(header):
         if name in cols:
             problems.add(f"column {show(name)} appears more than once in the header")

@@ -46,6 +46,13 @@ def decode(data: bytes) -> tuple[str | None, str | None]:
             return None, "the file starts with a UTF-16 byte-order mark but is not UTF-16 text"
     nul = data.find(b"\x00")
     if nul >= 0:
+        head = data[:200]
+        if head.count(b"\x00") * 3 >= len(head) and b"\x00\x00" not in head:
+            # Every other byte NUL: text in UTF-16 without its byte-order mark.
+            return None, (
+                f"the file looks like UTF-16 text without a byte-order mark (a NUL byte at offset {nul}); "
+                "save it as UTF-8 CSV"
+            )
         return None, f"the file is binary, not a CSV text file (a NUL byte at offset {nul})"
     try:
         return data.decode("utf-8-sig"), None
