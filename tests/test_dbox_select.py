@@ -15,6 +15,7 @@ torch = pytest.importorskip("torch")
 
 from odmd_bench_baselines import dbox  # noqa: E402
 from odmd_bench_baselines.dbox.model import checkpoint_shapes  # noqa: E402
+from odmd_bench_baselines.dbox.select import SCORE_TOLERANCE  # noqa: E402
 
 import odmd_bench  # noqa: E402
 from odmd_bench import DataError, Examples, UsageError  # noqa: E402
@@ -302,7 +303,7 @@ def test_every_shipped_checkpoint_scores_the_val_numbers_its_record_states(paper
                 stated = json.loads(path.with_suffix(".json").read_text())["val_mean_percent_error"][name]
                 pred = dbox.predict(ex, config=config, selection=selection)
                 got = float(np.mean(np.abs(pred - ex.depth) / ex.depth * 100))
-                assert got == pytest.approx(stated, abs=2e-3), (config, selection, name)
+                assert got == pytest.approx(stated, abs=SCORE_TOLERANCE), (config, selection, name)
                 checked += 1
     assert checked >= 8
 

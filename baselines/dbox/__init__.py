@@ -208,12 +208,9 @@ def verify_weights(
             raise UsageError(f"weights_sha256 must be 64 hex digits, got {weights_sha256!r}")
     elif record.is_file():
         expected, source = _recorded_sha256(record), f"its record {record}"
-    elif path.name in _release_checkpoints():
+    elif (pinned := _release_checkpoints().get(path.name)) is not None:
         # The original release's own checkpoint, known by its name: its pinned hash.
-        expected, source = (
-            _release_checkpoints()[path.name],
-            "the release's hash in splits/odmd-original.json",
-        )
+        expected, source = pinned, "the release's hash in splits/odmd-original.json"
     elif require_record:
         raise DataError(
             f"the shipped weights {path} have no record {record.name} beside them to check "

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import contextlib
 from pathlib import Path
 from typing import Any
 
@@ -70,13 +69,10 @@ def _emit(*reports: tuple[str, Path | None, str]) -> None:
     Every file is written before any replaces what was there, so a failure (a full
     disk, a folder that cannot be written) leaves them all as they were.
     """
-    from odmd_bench.data.atomic import atomic_write
+    from odmd_bench.data.atomic import atomic_texts
 
-    files = [(text, out) for text, out, _ in reports if out is not None and str(out) != "-"]
-    with contextlib.ExitStack() as stack:
-        handles = [stack.enter_context(atomic_write(out, "w")) for _, out in files]
-        for (text, _), fh in zip(files, handles, strict=True):
-            fh.write(text)
+    with atomic_texts([(out, text) for text, out, _ in reports if out is not None and str(out) != "-"]):
+        pass
     for text, out, what in reports:
         if out is None or str(out) == "-":
             click.echo(text, nl=False)

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import contextlib
 from pathlib import Path
 from typing import Any
 
@@ -210,19 +209,18 @@ def plot_command(
     curves = error_curves(results, _labels(preds, labels), set_name, error=error, bins=edges)
     first = results[0]
     heading = title or default_title(first.benchmark, first.split, set_name, error, curves[0].n)
-    from odmd_bench.data.atomic import atomic_path, atomic_write
+    from odmd_bench.data.atomic import atomic_texts
 
-    # Both files are written before either replaces what was there: a failure leaves both as they were.
-    with contextlib.ExitStack() as stack:
-        csv_fh = stack.enter_context(atomic_write(csv_out, "w")) if csv_out is not None else None
-        png = stack.enter_context(atomic_path(output))
-        draw_error_curves(curves, png, error=error, title=heading, band=band)
-        if csv_fh is not None:
-            csv_fh.write(
-                format_curves_csv(
-                    curves, benchmark=first.benchmark, split=first.split, set_name=set_name, error=error
-                )
-            )
+    # The numbers are written before the figure, and replace their old file only once the
+    # figure is written: a failure leaves both as they were.
+    outputs: list[tuple[Path, str]] = []
+    if csv_out is not None:
+        numbers = format_curves_csv(
+            curves, benchmark=first.benchmark, split=first.split, set_name=set_name, error=error
+        )
+        outputs.append((csv_out, numbers))
+    with atomic_texts(outputs):
+        draw_error_curves(curves, output, error=error, title=heading, band=band)
     click.echo(f"wrote the figure to {output}", err=True)
     if csv_out is not None:
         click.echo(f"wrote the binned numbers to {csv_out}", err=True)

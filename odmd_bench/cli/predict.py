@@ -114,9 +114,7 @@ def predict(
     result = predict_sequences(seqs, method, **options)
     text = format_depths(result)
     to_stdout = output == "-"
-    path = (
-        None if to_stdout else Path(output) if output is not None else default_output(sequences, method_name)
-    )
+    path = target
     if path is None:
         click.echo(text, nl=False)
     else:

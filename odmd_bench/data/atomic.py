@@ -22,7 +22,7 @@ import stat
 import sys
 import tempfile
 import time
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import IO, Any
 
@@ -311,6 +311,21 @@ def atomic_write(path: str | os.PathLike[str], mode: str = "wb") -> Iterator[IO[
 
 
 @contextlib.contextmanager
+def atomic_texts(texts: Sequence[tuple[str | os.PathLike[str], str]]) -> Iterator[None]:
+    """Write several text files so that none replaces its old version unless all are written.
+
+    Each ``(path, text)`` is written to its temporary file on entry; the body runs (it
+    may write further files of its own, e.g. a figure through :func:`atomic_path`); on
+    success every file is moved over its path. A failure anywhere, in the body
+    included, leaves every path as it was.
+    """
+    with contextlib.ExitStack() as stack:
+        for path, text in texts:
+            stack.enter_context(atomic_write(path, "w")).write(text)
+        yield
+
+
+@contextlib.contextmanager
 def locked(path: str | os.PathLike[str]) -> Iterator[Path]:
     """Hold an exclusive lock for writing ``path``, across processes.
 
@@ -349,6 +364,7 @@ def locked(path: str | os.PathLike[str]) -> Iterator[Path]:
 __all__ = [
     "STALE_TEMP_SECONDS",
     "atomic_path",
+    "atomic_texts",
     "atomic_write",
     "clean_stale_temps",
     "ensure_folder",

@@ -115,7 +115,7 @@ class GeneratorConfig:
             or not 2 <= self.n_obs <= MAX_N_OBS
         ):
             problems.append(f"n_obs: expected an integer from 2 to {MAX_N_OBS}, got {_show(self.n_obs)}")
-        typed = set()  # the fields whose type is right, checked further below
+        typed: set[str] = set()  # the fields whose type is right, checked further below
         for name, size in (("object_size", 2), ("initial_depth", 2), ("move_min", 3), ("move_max", 3)):
             value = getattr(self, name)
             if not isinstance(value, tuple) or len(value) != size:
@@ -124,11 +124,13 @@ class GeneratorConfig:
             before = len(problems)
             for i, v in enumerate(value):
                 _finite(f"{name}[{i}]", v, problems)
-            typed.update([name] if len(problems) == before else [])
+            if len(problems) == before:
+                typed.add(name)
         for name in ("camera_sigma", "box_sigma", "replace_prob", "reverse_prob"):
             before = len(problems)
             _finite(name, getattr(self, name), problems)
-            typed.update([name] if len(problems) == before else [])
+            if len(problems) == before:
+                typed.add(name)
 
         if "object_size" in typed and not 0 < self.object_size[0] <= self.object_size[1]:
             problems.append(f"object_size: need 0 < min <= max, got {self.object_size}")

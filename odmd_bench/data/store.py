@@ -109,21 +109,18 @@ def pin_problem(benchmark: str, split: str, set_name: str, attrs: dict[str, Any]
     ``--allow-unknown`` or written by other means are not pinned, and are checked
     against their own hashes only.
     """
-    if not get_benchmark(benchmark).generated:
+    if not is_pinned(benchmark, attrs):
+        return None
+    entry = pin(benchmark, split, set_name)
+    source = attrs.get("source_sha256")
+    if not get_benchmark(benchmark).generated and source != entry["source_sha256"]:
         from odmd_bench.data.manifests import known_originals
 
-        source = attrs.get("source_sha256")
-        if source is None or str(source) not in known_originals():
-            return None
-        entry = pin(benchmark, split, set_name)
-        if source != entry["source_sha256"]:
-            known = known_originals()[str(source)]
-            return (
-                f"{benchmark} {split} {set_name}: the set is the conversion of {known['path']}, "
-                f"not of the file pinned for it in splits/{benchmark}.json"
-            )
-    else:
-        entry = pin(benchmark, split, set_name)
+        return (
+            f"{benchmark} {split} {set_name}: the set is the conversion of "
+            f"{known_originals()[str(source)]['path']}, not of the file pinned for it in "
+            f"splits/{benchmark}.json"
+        )
     for key, what in (("sha256", "content_sha256"), ("meta_sha256", "meta_sha256")):
         got = str(attrs.get(what))
         if got != entry[key]:

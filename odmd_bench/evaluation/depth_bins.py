@@ -145,7 +145,6 @@ def _check_edges(edges: Sequence[float], what: str) -> None:
     problems = []
     if len(edges) < 2:
         problems.append(f"{len(edges)} edge given; at least two are needed (one bin)")
-
     if not all(np.isfinite(edges)):
         problems.append("every edge must be finite")
     elif any(b <= a for a, b in zip(edges, edges[1:], strict=False)):

@@ -15,13 +15,12 @@ before anything in it is read (a link is never followed, and its target never sh
 
 from __future__ import annotations
 
-import contextlib
 import importlib.util
 import os
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from odmd_bench.data.atomic import atomic_path, atomic_write
+from odmd_bench.data.atomic import atomic_texts
 from odmd_bench.documents import MAX_DOCUMENT_BYTES, DocumentError, load_document
 from odmd_bench.errors import UsageError, ValidationError
 from odmd_bench.evaluation.source import MAX_PREDICTIONS_BYTES, read_source
@@ -211,10 +210,7 @@ def write(root: str | os.PathLike[str], built: Built, *, plot: bool = True) -> l
         texts.append((stale[0], stale[2]))
     # Every file is written before any replaces its old version: a failure (a full
     # disk, a file size limit) leaves the board as it was, all of it.
-    with contextlib.ExitStack() as stack:
-        handles = [stack.enter_context(atomic_write(path, "w")) for path, _ in texts]
-        for (_, text), fh in zip(texts, handles, strict=True):
-            fh.write(text)
+    with atomic_texts(texts):
         if plot and importlib.util.find_spec("matplotlib") is None:
             said.append(
                 f"skipped the plot {root / PLOT}: matplotlib is not installed (pip install 'odmd-bench[plot]')"
@@ -222,7 +218,7 @@ def write(root: str | os.PathLike[str], built: Built, *, plot: bool = True) -> l
         elif plot:
             from odmd_bench.leaderboard.plot import plot_boards
 
-            plot_boards(built.boards, stack.enter_context(atomic_path(root / PLOT)))
+            plot_boards(built.boards, root / PLOT)
             said.append(f"wrote {root / PLOT}")
     said[:0] = [f"wrote {root / MARKDOWN}", f"wrote {root / JSON_FILE}"] + (
         [f"updated the leaderboard summary in {stale[0]}"] if stale is not None else []
