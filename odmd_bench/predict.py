@@ -79,7 +79,8 @@ class SequenceDepths:
         names: (N,) sequence names.
         depth: (N,) the estimated depth at each sequence's last observation, metres.
         truth: (N,) the true depth where the file gives it, else NaN.
-        observations: (N,) int, observations the method used.
+        observations: (N,) int, observations the method was given (all, or the count
+            it declares; a method may look at fewer, e.g. expansion at the two ends).
         detections: (N,) int, how many of those had a detection.
         counts: the method's counted fallbacks, summed over the sequences, and what it
             says of its run (strings).

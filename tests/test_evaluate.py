@@ -244,6 +244,26 @@ def test_sets_subset(data: Path, tmp_path: Path) -> None:
         evaluate(full, benchmark=BENCH, sets=["robt"])
 
 
+def test_rows_of_sets_left_out_are_still_checked(data: Path, tmp_path: Path) -> None:
+    """A file is refused or not whatever --sets says.
+
+    Rows of the other sets are checked like any row, their indices against the sizes
+    pinned in splits/ (the robot test set of odmd-paper: 3000 examples), and only then
+    ignored.
+    """
+    body = "split,set,index,depth\n" + "\n".join(rows())
+    bad = write(tmp_path, body + "\ntest,robot,3000,1.0\ntest,object,-1,1.0\ntest,robot,0,nan\n")
+    problems = problems_of(bad, sets=["camera"])
+    ranged = [q for q in problems if q.startswith("index out of range")]
+    assert len(ranged) == 1 and "(2 rows)" in ranged[0], problems
+    assert "robot 3000; robot has 3000 examples" in ranged[0] and "object -1" in ranged[0]
+    assert any(q.startswith("depth is NaN") for q in problems), problems
+    # within the pinned sizes they are ignored, as before
+    ok = write(tmp_path, body + "\ntest,robot,2999,1.0\n", "ok.csv")
+    r = evaluate(ok, benchmark=BENCH, sets=["camera"])
+    assert list(r.sets) == ["camera"] and any("ignored rows" in w for w in r.warnings)
+
+
 def test_file_is_never_modified(data: Path, tmp_path: Path) -> None:
     for text in ("split,set,index,depth\n" + "\n".join(rows()), "split,set,index,depth\ntest,normal,0,x\n"):
         p = write(tmp_path, text)

@@ -14,7 +14,9 @@ from odmd_bench.evaluation.report import FORMATS
 from odmd_bench.evaluation.source import stdin_bytes
 
 _BENCHMARK_HELP = "Benchmark the file is for [default: the file's benchmark column, else odmd-v1]."
-_SETS_HELP = "Score only these sets (comma-separated, e.g. normal,robot); other sets' rows are ignored."
+_SETS_HELP = (
+    "Score only these sets (comma-separated, e.g. normal,robot); other sets' rows are checked but not scored."
+)
 _OUTPUT_HELP = "Write the report to FILE instead of stdout ('-': stdout)."
 _PREDS = click.Path(path_type=Path, allow_dash=True)
 _OUT = click.Path(path_type=Path, dir_okay=False, allow_dash=True)

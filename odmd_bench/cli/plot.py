@@ -179,7 +179,7 @@ def plot_command(
     """Plot error against true depth for one set: one line per predictions file PREDS.
 
     Each PREDS file (CSV, .csv.gz, or - for stdin) is validated and scored as by
-    `evaluate`, on the set --set only; its rows of other sets are ignored. The set's
+    `evaluate`, on the set --set only; its rows of other sets are checked, not plotted. The set's
     examples are binned by true depth; each method's line is its mean error per bin,
     with its interquartile range shaded, and a bar chart below counts the examples per
     bin. All files must be for one benchmark and split. Needs the plot extra

@@ -29,6 +29,19 @@ def read_manifest(name: str) -> dict[str, Any]:
     return data
 
 
+def pinned_sizes(benchmark: str, split: str) -> dict[str, int]:
+    """``{set: number of examples}`` of one split as the benchmark's manifest pins them.
+
+    Empty for a benchmark or split without a manifest entry; a set without a pinned
+    ``n`` is left out.
+    """
+    try:
+        entries = read_manifest(benchmark)["splits"][split]
+    except (DataError, KeyError, TypeError):
+        return {}
+    return {s: int(e["n"]) for s, e in entries.items() if isinstance(e, dict) and isinstance(e.get("n"), int)}
+
+
 def known_originals() -> dict[str, dict[str, Any]]:
     """``{sha256: entry}`` for every file of the original release (``splits/odmd-original.json``)."""
     files = read_manifest("odmd-original")["files"]

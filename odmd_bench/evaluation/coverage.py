@@ -1,9 +1,11 @@
 """Checking parsed predictions against the sizes of the sets: the second stage of evaluation.
 
 :func:`check_coverage` places each estimate at its index, and finds indices out of range
-and examples without a row. It reads no file: the sizes come from the caller (from the
-loaded sets in :func:`~odmd_bench.evaluation.scoring.evaluate`, from the leaderboard's
-sets, or from a test).
+and examples without a row. It reads no data file: the sizes of the sets in scope come
+from the caller (from the loaded sets in :func:`~odmd_bench.evaluation.scoring.evaluate`,
+from the leaderboard's sets, or from a test); rows of the sets left out of scope are
+range-checked against the sizes pinned in ``splits/``, so that a file is refused or not
+whatever ``--sets`` says.
 """
 
 from __future__ import annotations
@@ -12,6 +14,7 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
+from odmd_bench.data.manifests import pinned_sizes
 from odmd_bench.data.registry import Benchmark, get_benchmark
 from odmd_bench.errors import UsageError
 from odmd_bench.evaluation.parse import ParsedPredictions
@@ -60,7 +63,8 @@ def check_coverage(
         parsed: from :func:`~odmd_bench.evaluation.parse.parse_predictions`; problems it
             kept (``strict=False``) are reported together with these.
         sizes: ``{set: number of examples}`` of ``parsed.split``, for every set in scope.
-        sets: score only these sets (rows of others are ignored, with a warning);
+        sets: score only these sets (rows of others are checked like any row, their
+            indices against the pinned sizes, and then ignored, with a warning);
             default: every set of the benchmark must be covered.
 
     Returns:
@@ -82,12 +86,14 @@ def check_coverage(
         raise UsageError(f"no size given for the sets {', '.join(lacking)}")
     code = {n: i for i, n in enumerate(parsed.set_names)}
     size_of = np.full(len(parsed.set_names), -1, dtype=np.int64)
-    for s in scope:
-        if s in code:
-            size_of[code[s]] = int(sizes[s])
+    scoped = np.zeros(len(parsed.set_names), dtype=bool)
+    known = {**pinned_sizes(bench.name, parsed.split), **{s: int(sizes[s]) for s in scope}}
+    for s, c in code.items():
+        size_of[c] = known.get(s, -1)
+        scoped[c] = s in scope
     n_row = size_of[parsed.codes]
-    in_scope = n_row >= 0
-    out = in_scope & ((parsed.indices < 0) | (parsed.indices >= n_row))
+    in_scope = scoped[parsed.codes]
+    out = (n_row >= 0) & ((parsed.indices < 0) | (parsed.indices >= n_row))
     _out_of_range(parsed, np.flatnonzero(out), n_row, problems)
     placed = in_scope & ~out
     depths = {
