@@ -697,6 +697,34 @@ def test_shipped_per_set_z_weights_meet_the_papers_table_2_row_on_test(
     assert got["all"] <= paper_all, got
 
 
+def test_p_z_per_set_misses_the_papers_robot_and_driving_means_in_the_tail_only(paper_data_dir: Path) -> None:
+    """docs/dbox.md's comparison with the paper's Detailed ODMS Results (supplementary).
+
+    The shipped per-set p-z files miss the paper's Robot and Driving means (11.45, 24.84),
+    but their median is below the paper's on every ODMS-detection test set: the gap is a
+    tail of over-estimates (errors above 100 %), most of them on examples whose Z_n / L
+    lies below the 5th percentile of the p-z training stream (1.03).
+    """
+    paper_median = {"normal": 8.17, "perturb": 15.25, "robot": 6.29, "driving": 18.99}
+    stated = {  # median, max, examples over 100 %
+        "normal": (6.45, 119.58, 3),
+        "perturb": (13.38, 271.58, 9),
+        "robot": (6.05, 705.60, 43),
+        "driving": (17.79, 484.52, 15),
+    }
+    for name, ex in odmd_bench.load_split("test", "odms-detection", paper_data_dir).items():
+        depth = dbox.predict(ex, config="p-z", selection="per-set")
+        err = odmd_bench.percent_error(ex.depth, depth)
+        median, top, over = stated[name]
+        assert abs(float(np.median(err)) - median) < 0.0051 and abs(float(err.max()) - top) < 0.0051, name
+        assert int(np.count_nonzero(err > 100)) == over and np.all(depth[err > 100] > ex.depth[err > 100])
+        assert float(np.median(err)) < paper_median[name], name
+        if name == "robot":  # 33 of the 43 lie below the training stream's 5th percentile of Z_n / L
+            low = ex.depth / np.linalg.norm(ex.camera[:, 0, :] - ex.camera[:, -1, :], axis=1) < 1.03
+            assert int(np.count_nonzero(low & (err > 100))) == 33 and int(np.count_nonzero(low)) == 1247
+            assert abs(np.sort(err)[-10:].sum() / err.sum() - 0.12) < 0.005  # the ten largest: 12 %
+
+
 def test_p_z_on_odmd_data_runs_the_weights_selected_on_odmd_val(
     paper_data_dir: Path,
     v1_data_dir: Path,
