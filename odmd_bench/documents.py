@@ -28,7 +28,16 @@ class DocumentError(ValueError):
 
 
 class _BoundedLoader(yaml.SafeLoader):
-    """``SafeLoader`` that refuses anchors and aliases and limits the nesting."""
+    """``SafeLoader`` that refuses anchors and aliases and limits the nesting.
+
+    Unquoted dates and times stay text (``2026-13-01`` would otherwise fail inside the
+    parser, and ``2026-11-25T10:00`` become a datetime): their readers check them.
+    """
+
+    yaml_implicit_resolvers = {
+        first: [(tag, regexp) for tag, regexp in resolvers if tag != "tag:yaml.org,2002:timestamp"]
+        for first, resolvers in yaml.SafeLoader.yaml_implicit_resolvers.items()
+    }
 
     def __init__(self, stream: str) -> None:
         super().__init__(stream)
@@ -112,3 +121,7 @@ def load_document(data: bytes, kind: str) -> object:
         return yaml.load(text, Loader=_BoundedLoader)  # noqa: S506 - a SafeLoader subclass
     except yaml.YAMLError as e:
         raise DocumentError(_yaml_message(e)) from None
+    except DocumentError:
+        raise
+    except (ValueError, TypeError, OverflowError) as e:  # a value its explicit tag cannot make
+        raise DocumentError(f"a value cannot be read ({type(e).__name__}: {_short(str(e))})") from None

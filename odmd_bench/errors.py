@@ -106,3 +106,11 @@ class ValidationError(OdmdError, ValueError):
 
 class UsageError(OdmdError, ValueError):
     """A bad combination of arguments (unknown benchmark, split, set, method...)."""
+
+
+class MethodError(OdmdError, RuntimeError):
+    """A registered method of another distribution (a plug-in) failed or broke its promise.
+
+    The message names the method, where it comes from and, for an exception it raised,
+    the line of the plug-in's code that raised it: a bug of that method, not of odmd-bench.
+    """

@@ -25,6 +25,7 @@ that keyword (:meth:`Method.accepts`).
 from __future__ import annotations
 
 import inspect
+import traceback
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from importlib import metadata
@@ -33,7 +34,7 @@ from typing import Any
 import numpy as np
 
 from odmd_bench.data.examples import Examples
-from odmd_bench.errors import UsageError
+from odmd_bench.errors import MethodError, OdmdError, UsageError
 from odmd_bench.extras import is_installed, missing_module_error
 
 #: The entry-point group methods are registered under.
@@ -65,6 +66,9 @@ class Method:
     def run(self, examples: Examples, **options: Any) -> tuple[np.ndarray, dict[str, int | str]]:
         """Depths and the method's report for ``examples``, checked.
 
+        The method sees ``examples.without_truth()``: the boxes, detections, camera and
+        metadata, never the true depths or the generator's extras.
+
         Args:
             examples: the examples to estimate.
             **options: keywords for ``predict_report``; each must be accepted.
@@ -77,23 +81,49 @@ class Method:
         Raises:
             UsageError: an option the method does not take, or an optional module it
                 needs is not installed (the message names the extra).
-            RuntimeError: the method broke its promise of one finite depth per example
-                (a bug of the method, named with its distribution).
+            MethodError: a plug-in (a method of another distribution) raised, or broke
+                its promise of one finite depth per example and a report of counts.
+            RuntimeError: the same from one of odmd-bench's own methods (a bug of
+                odmd-bench).
         """
         refused = [k for k in options if not self.accepts(k)]
         if refused:
             raise UsageError(f"method {self.name!r} takes no option {', '.join(map(repr, refused))}")
+        bug = f"method {self.name!r} ({self.target}, from {self.source})"
+        broken = RuntimeError if self.is_own else MethodError
         try:
-            depths, counts = self.predict_report(examples, **options)
+            depths, counts = self.predict_report(examples.without_truth(), **options)
         except ModuleNotFoundError as e:
             raise _missing(e, self.name) from None
-        depths = np.asarray(depths, dtype=np.float64)
-        bug = f"method {self.name!r} ({self.target}, from {self.source})"
+        except (OdmdError, MemoryError):
+            raise
+        except Exception as e:
+            if self.is_own:
+                raise
+            raise MethodError(f"{bug} failed: {_raised(e)}; a bug of that method, not of odmd-bench") from e
+        try:
+            depths = np.asarray(depths, dtype=np.float64)
+            report = {str(k): v if isinstance(v, str) else int(v) for k, v in dict(counts).items()}
+        except (TypeError, ValueError) as e:
+            raise broken(f"{bug} returned what is not depths and a report of counts: {_raised(e)}") from None
         if depths.shape != (len(examples),):
-            raise RuntimeError(f"{bug} returned shape {depths.shape} for {len(examples)} examples")
+            raise broken(f"{bug} returned shape {depths.shape} for {len(examples)} examples")
         if not np.isfinite(depths).all():
-            raise RuntimeError(f"{bug} returned {int((~np.isfinite(depths)).sum())} non-finite depths")
-        return depths, {str(k): v if isinstance(v, str) else int(v) for k, v in dict(counts).items()}
+            raise broken(f"{bug} returned {int((~np.isfinite(depths)).sum())} non-finite depths")
+        return depths, report
+
+    @property
+    def is_own(self) -> bool:
+        """Whether odmd-bench's own distribution registers the method (its bugs are ours)."""
+        return self.source.split(" ", 1)[0] == "odmd-bench"
+
+
+def _raised(e: BaseException) -> str:
+    """``Type: message (raised at file:line, in function)``, the last frame of the trace."""
+    frames = traceback.extract_tb(e.__traceback__)
+    where = f" (raised at {frames[-1].filename}:{frames[-1].lineno}, in {frames[-1].name})" if frames else ""
+    text = " ".join(str(e).split())
+    return f"{type(e).__name__}: {text[:300]}{where}"
 
 
 def names() -> list[str]:

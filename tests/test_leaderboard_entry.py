@@ -256,6 +256,19 @@ def test_dates_must_not_be_in_the_future(tmp_path: Path) -> None:
     assert lb.read_entry(folder).meta.date == dt.date.today().isoformat()
 
 
+def test_unquoted_impossible_dates_and_times_are_named_not_a_traceback(tmp_path: Path) -> None:
+    """YAML's timestamps stay text, so the entry's reader names what is wrong with them."""
+    folder = _repo(tmp_path)
+    text = yaml.safe_dump(_good_meta(date="DAY")).replace("'DAY'", "DAY").replace("DAY", "{}")
+    for day in ("2026-13-01", "2026-02-30", "2026-11-25T10:00:00", "2026-11-25 10:00:00"):
+        (folder / "entry.yaml").write_text(text.format(day))
+        assert f"date '{day}' is not a date YYYY-MM-DD" in _problems(folder), day
+    (folder / "entry.yaml").write_text(text.format("2026-01-02"))  # unquoted and valid: read
+    assert lb.read_entry(folder).meta.date == "2026-01-02"
+    (folder / "entry.yaml").write_text(text.format("!!timestamp 2026-13-01"))
+    assert "a value cannot be read (ValueError: month must be in 1..12)" in _problems(folder)
+
+
 def test_text_fields_are_bounded_and_not_echoed(tmp_path: Path) -> None:
     huge = "N" * 10_000
     folder = _write(_repo(tmp_path), _good_meta(name=huge, notes="x" * (MAX_LENGTHS["notes"] + 1)))

@@ -22,6 +22,8 @@ from odmd_bench import methods
 from odmd_bench.cli.main import cli
 from odmd_bench.errors import UsageError
 
+DOCS = Path(__file__).resolve().parents[1] / "docs"
+
 THIRD_PARTY = '''
 """A method from another distribution: a constant depth, and a report."""
 import numpy as np
@@ -61,6 +63,8 @@ def plugins(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
             "needs-dep": "odmd_thirdparty_needs",
             "gone": "odmd_thirdparty_not_there",
             "bad-shape": "odmd_thirdparty_bad:Bad",
+            "fails": "odmd_thirdparty_fails",
+            "peek": "odmd_thirdparty_peek",
             "box-ls": "odmd_thirdparty_method",  # a second box-ls: ambiguous
         },
         {
@@ -68,6 +72,16 @@ def plugins(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
             "odmd_thirdparty_half": "def predict(examples):\n    return examples.depth\n",
             "odmd_thirdparty_raises": "raise RuntimeError('plug-in failed at import')\n",
             "odmd_thirdparty_needs": "import no_such_dependency_of_odmd\n",
+            "odmd_thirdparty_peek": """
+                import numpy as np
+
+                def predict_report(examples):
+                    assert examples.observation_depth is None and examples.extras == {}
+                    return examples.depth, {}
+
+                predict = predict_report
+            """,
+            "odmd_thirdparty_fails": "def predict_report(examples):\n    return 1 / 0\n\npredict = predict_report\n",
             "odmd_thirdparty_bad": """
                 import numpy as np
 
@@ -80,6 +94,10 @@ def plugins(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
                     def predict_report(examples, shape=None):
                         if shape == "nan":
                             return np.full(len(examples), np.nan), {}
+                        if shape == "raise":
+                            raise ZeroDivisionError("the plug-in divided by zero")
+                        if shape == "report":
+                            return np.ones(len(examples)), {"n": "x" * 3, "bad": object()}
                         return np.ones(len(examples) + 1), {}
             """,
         },
@@ -146,13 +164,57 @@ def test_a_broken_plug_in_is_a_clear_usage_error(plugins: Path, name: str, messa
 
 def test_a_plug_in_breaking_its_promise_is_named_as_the_culprit(plugins: Path) -> None:
     method = methods.load("bad-shape")
+    assert not method.is_own and methods.load("robust").is_own
     ex = odmd_bench.generate(3, rng=0)
     with pytest.raises(
-        RuntimeError, match=r"'bad-shape' \(odmd_thirdparty_bad:Bad, from odmd_thirdparty 1.0\)"
+        odmd_bench.MethodError, match=r"'bad-shape' \(odmd_thirdparty_bad:Bad, from odmd_thirdparty 1.0\)"
     ):
         method.run(ex)
-    with pytest.raises(RuntimeError, match="3 non-finite depths"):
+    with pytest.raises(odmd_bench.MethodError, match="3 non-finite depths"):
         method.run(ex, shape="nan")
+    with pytest.raises(odmd_bench.MethodError, match="not depths and a report of counts: TypeError"):
+        method.run(ex, shape="report")
+    with pytest.raises(odmd_bench.MethodError) as e:
+        method.run(ex, shape="raise")
+    text = str(e.value)
+    assert "failed: ZeroDivisionError: the plug-in divided by zero (raised at " in text
+    assert "odmd_thirdparty_bad.py:" in text and "in predict_report)" in text
+    assert text.endswith("a bug of that method, not of odmd-bench")
+
+
+def test_a_method_never_sees_the_answer(plugins: Path) -> None:
+    """Methods run on ``Examples.without_truth()``.
+
+    A method that returns the true depth gets NaN, which is refused; the generator's
+    extras are not passed either.
+    """
+    ex = odmd_bench.generate(4, perturbation="both", rng=0)
+    assert ex.extras and np.isfinite(ex.depth).all() and ex.observation_depth is not None
+    view = ex.without_truth()
+    assert np.isnan(view.depth).all() and view.observation_depth is None and view.extras == {}
+    assert view.boxes is ex.boxes and view.camera is ex.camera and view.attrs == ex.attrs
+    with pytest.raises(odmd_bench.MethodError, match="returned 4 non-finite depths"):
+        methods.load("peek").run(ex)
+    seqs = odmd_bench.read_sequences(DOCS / "sequences-example.csv", image_size=(4032, 3024))
+    with pytest.raises(odmd_bench.MethodError, match="non-finite depths"):
+        odmd_bench.predict_sequences(seqs, "peek")
+
+
+def test_a_failing_plug_in_is_an_error_naming_it_not_an_internal_error(
+    plugins: Path, v1_data_dir: Path
+) -> None:
+    run = [sys.executable, "-c", "from odmd_bench.cli.main import main; main()", "baseline"]
+    env = {"PYTHONPATH": str(plugins), "ODMD_BENCH_DATA": str(v1_data_dir), "PATH": ""}
+    for name, expected in (
+        ("bad-shape", "(odmd_thirdparty_bad:Bad, from odmd_thirdparty 1.0) returned shape (2401,)"),
+        ("fails", "(odmd_thirdparty_fails, from odmd_thirdparty 1.0) failed: ZeroDivisionError: "),
+    ):
+        done = subprocess.run(
+            [*run, name, "--split", "val", "-o", "-"], capture_output=True, text=True, env=env
+        )
+        assert done.returncode == 2, done.stderr
+        assert "internal error" not in done.stderr and "Traceback" not in done.stderr, done.stderr
+        assert f"error: method '{name}' {expected}" in done.stderr, done.stderr
 
 
 def test_list_shows_each_method_with_its_options_and_the_broken_ones(plugins: Path) -> None:

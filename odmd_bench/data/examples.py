@@ -133,6 +133,18 @@ class Examples:
             )
         return tuple(float(self.attrs[k]) for k in keys)  # type: ignore[return-value]
 
+    def without_truth(self) -> Examples:
+        """The same examples as a method may see them, without the answer.
+
+        No depth, no per-observation depth and none of the source's ``extras`` (the
+        generator's object positions, clean camera and replaced boxes). The arrays are
+        shared, not copied; ``attrs`` is a copy.
+
+        Every registered method is run on this view (:meth:`odmd_bench.methods.Method.run`),
+        so that a score can never come from the answer.
+        """
+        return Examples(boxes=self.boxes, detected=self.detected, camera=self.camera, attrs=dict(self.attrs))
+
     def subset(self, index: np.ndarray | slice) -> Examples:
         """The examples selected by ``index`` (a new object; arrays are copies)."""
         return Examples(
