@@ -154,7 +154,9 @@ def predict_sequences(sequences: Sequences, method: str | Any, **options: Any) -
         if wanted is not None:
             ex = select_observations(ex, wanted)
         try:
-            d, c = m.run(ex, **options) if hasattr(m, "run") else m.predict_report(ex.without_truth(), **options)
+            d, c = (
+                m.run(ex, **options) if hasattr(m, "run") else m.predict_report(ex.without_truth(), **options)
+            )
         except DataError as e:
             if "intrinsics" in e.message and ex.attrs.get("fx") is None:
                 raise UsageError(

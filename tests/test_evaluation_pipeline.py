@@ -219,6 +219,7 @@ def test_score_of_arrays_names_every_problem(data: Path) -> None:
     assert any(q.startswith("set 'object': the depths must be real numbers") for q in got)
     assert any(q.startswith("unknown set 'robt'") and "did you mean 'robot'" in q for q in got)
     assert any(q.startswith("set 'robot' of benchmark 'odmd-paper' has no depths") for q in got)
+    assert any("e.g. sets=['normal', 'camera', 'object'])" in q for q in got), got
     short = dict(noisy())
     short["robot"] = short["robot"][:-1]
     with pytest.raises(ValidationError, match="set 'robot' has 3 examples but 2 depths were given"):

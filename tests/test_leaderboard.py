@@ -248,16 +248,18 @@ def test_predictions_for_other_data_fail(board: Path, v1_data_dir: Path) -> None
     meta["sets_content_sha256"]["camera"] = "0" * 64
     path.write_text(yaml.safe_dump(meta, sort_keys=False))
     problems = _check(board, v1_data_dir)
-    assert problems[0] == "entry box-ls/odmd-v1-test: predictions are for different data"
-    assert "odmd-v1 test camera with content SHA-256 0000000000000000..." in problems[1]
+    assert len(problems) == 1, problems  # one problem, counted once, saying whose it is
+    assert problems[0].startswith("entry box-ls/odmd-v1-test: predictions are for different data: ")
+    assert "odmd-v1 test camera with content SHA-256 0000000000000000..." in problems[0]
 
 
 def test_invalid_predictions_fail_with_the_evaluators_message(board: Path, v1_data_dir: Path) -> None:
     gz = board / lb.ENTRIES / "box-ls" / "odmd-v1-test" / "predictions.csv.gz"
     _rewrite_gz(gz, lambda t: "".join(t.splitlines(keepends=True)[:-1]))  # drop the last row
     problems = _check(board, v1_data_dir)
-    assert problems[0] == "entry box-ls/odmd-v1-test: predictions.csv.gz fails validation"
-    assert "of set 'robot' have no row (missing indices 2999)" in problems[1]
+    assert len(problems) == 1, problems
+    assert problems[0].startswith("entry box-ls/odmd-v1-test: predictions.csv.gz fails validation: ")
+    assert "of set 'robot' have no row (missing indices 2999)" in problems[0]
 
 
 def test_incomplete_metadata_fails_check(board: Path, v1_data_dir: Path) -> None:
@@ -266,8 +268,9 @@ def test_incomplete_metadata_fails_check(board: Path, v1_data_dir: Path) -> None
     del meta["training_data"]
     path.write_text(yaml.safe_dump(meta, sort_keys=False))
     problems = _check(board, v1_data_dir)
-    assert problems[0] == "entry box-ls/odmd-v1-test: metadata is incomplete or wrong"
-    assert "missing field 'training_data'" in problems[1]
+    assert len(problems) == 1, problems
+    assert problems[0].startswith("entry box-ls/odmd-v1-test: metadata is incomplete or wrong: ")
+    assert "missing field 'training_data'" in problems[0]
 
 
 def test_missing_generated_file_fails_check(board: Path, v1_data_dir: Path) -> None:
@@ -282,9 +285,14 @@ def test_add_refuses_an_existing_entry_and_bad_predictions(
         _add(board, v1_data_dir, v1_preds["box_ls"], "box-ls")
     bad = tmp_path / "bad.csv"
     bad.write_text("split,set,index,depth\ntest,normal,0,1.0\n")
-    with pytest.raises(ValidationError):
+    with pytest.raises(ValidationError) as info:
         _add(board, v1_data_dir, bad, "newbie")
     assert not (board / lb.ENTRIES / "newbie" / "odmd-v1-test").exists()
+    # named by the user's file; a missing set is not told to use --sets, which add has not
+    assert info.value.message == f"{bad} cannot be added as newbie/odmd-v1-test"
+    missing = [q for q in info.value.problems if "has no rows" in q]
+    assert missing and all("a board needs predictions for every example" in q for q in missing)
+    assert "--sets" not in info.value.render()
 
 
 def test_reported_results_are_checked(tmp_path: Path) -> None:
@@ -543,9 +551,9 @@ def test_a_link_to_another_entrys_predictions_fails_check(board: Path, v1_data_d
     mine.unlink()
     mine.symlink_to(board / lb.ENTRIES / "expansion" / "odmd-v1-test" / "predictions.csv.gz")
     problems = _check(board, v1_data_dir)
-    assert problems[:2] == [
-        "entry box-ls/odmd-v1-test: symbolic links are not allowed",
-        "  box-ls/odmd-v1-test/predictions.csv.gz is a symbolic link; an entry holds plain files "
+    assert problems[:1] == [
+        "entry box-ls/odmd-v1-test: symbolic links are not allowed: "
+        "box-ls/odmd-v1-test/predictions.csv.gz is a symbolic link; an entry holds plain files "
         "(links are not followed)",
     ]
 

@@ -236,6 +236,24 @@ def test_code_paths_must_stay_inside_the_repository(tmp_path: Path, code: str) -
     assert "is a path outside the repository" in _problems(folder)
 
 
+@pytest.mark.parametrize(
+    ("code", "plain"),
+    [
+        ("./baselines/m.py", "baselines/m.py"),
+        ("baselines//m.py", "baselines/m.py"),
+        ("baselines/./m.py", "baselines/m.py"),
+        ("baselines/../baselines/m.py", None),
+        ("baselines/", "baselines"),
+    ],
+)
+def test_code_paths_are_written_one_way(tmp_path: Path, code: str, plain: str | None) -> None:
+    """``./baselines/x.py`` would hide an entry from the tests that re-run this repository's commands."""
+    folder = _write(_repo(tmp_path), _good_meta(code=code))
+    problems = _problems(folder)
+    assert f"code '{code}' is not a plain relative path" in problems, problems
+    assert (f"write it as '{plain}'" if plain is not None else "without '..'") in problems
+
+
 def test_a_code_link_leaving_the_repository_is_refused(tmp_path: Path) -> None:
     folder = _repo(tmp_path / "repo")
     (tmp_path / "outside.py").write_text("")

@@ -80,7 +80,7 @@ def check_command(root: Path | None, data_dir: Path | None, original: Path | Non
         raise ValidationError(
             f"leaderboard check failed ({folder}): {len(problems)} "
             f"{'problem' if len(problems) == 1 else 'problems'}; fix the entries, or run "
-            "`odmd-bench leaderboard build` and commit LEADERBOARD.md and leaderboard.json",
+            "`odmd-bench leaderboard build` and commit LEADERBOARD.md, leaderboard.json and README.md",
             problems,
         )
     click.echo(f"leaderboard check passed: {folder} is what build writes, every entry re-scored")

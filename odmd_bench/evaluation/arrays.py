@@ -80,10 +80,10 @@ def _set_names(
             )
     for s in scope:
         if s not in depths:
-            others = ",".join(x for x in scope if x != s)
+            others = [x for x in scope if x != s]
             problems.add(
                 f"set {s!r} of benchmark {bench.name!r} has no depths (to score only some sets, "
-                f"name them, e.g. sets=[{others!r}])"
+                f"name them, e.g. sets={others!r})"
             )
 
 

@@ -56,6 +56,7 @@ def check_coverage(
     sizes: Mapping[str, int],
     *,
     sets: Sequence[str] | None = None,
+    board: bool = False,
 ) -> Predictions:
     """Place parsed estimates by index and check that they cover every example once.
 
@@ -66,6 +67,8 @@ def check_coverage(
         sets: score only these sets (rows of others are checked like any row, their
             indices against the pinned sizes, and then ignored, with a warning);
             default: every set of the benchmark must be covered.
+        board: the file is a leaderboard entry's (a set without rows is not told to
+            use ``--sets``, which a board does not have).
 
     Returns:
         Validated predictions, ``depths[s][i]`` the estimate of example ``i`` of set ``s``.
@@ -97,7 +100,7 @@ def check_coverage(
     _out_of_range(parsed, np.flatnonzero(out), n_row, problems)
     placed = in_scope & ~out
     depths = {
-        s: _place(parsed, placed, code.get(s, -1), int(sizes[s]), s, scope, bench, sets, problems)
+        s: _place(parsed, placed, code.get(s, -1), int(sizes[s]), s, scope, bench, sets, problems, board)
         for s in scope
     }
     if problems:
@@ -135,6 +138,7 @@ def _place(
     bench: Benchmark,
     sets: Sequence[str] | None,
     problems: Problems,
+    board: bool = False,
 ) -> np.ndarray:
     """``(n,)`` the estimates of set ``s`` by index (NaN where missing); gaps are problems."""
     depth = np.full(n, np.nan)
@@ -144,11 +148,12 @@ def _place(
     seen[parsed.indices[mine]] = True
     gaps = np.flatnonzero(~seen)
     if gaps.size == n:
-        hint = (
-            "it was asked for"
-            if sets is not None
-            else f"to score only some sets, name them, e.g. --sets {','.join(x for x in scope if x != s)}"
-        )
+        if board:
+            hint = "a board needs predictions for every example of every set"
+        elif sets is not None:
+            hint = "it was asked for"
+        else:
+            hint = f"to score only some sets, name them, e.g. --sets {','.join(x for x in scope if x != s)}"
         problems.add(f"set {s!r} of benchmark {bench.name!r} has no rows ({hint})")
     elif gaps.size:
         shown = ", ".join(str(i) for i in gaps[:SHOWN])

@@ -103,8 +103,13 @@ def add_entry(
         (staged / "entry.yaml").write_text(
             yaml.safe_dump(meta, sort_keys=False, allow_unicode=True, width=100), encoding="utf-8"
         )
-        entry = read_entry(staged, root.parent)
-        score_entry(entry, examples)
+        try:
+            entry = read_entry(staged, root.parent)
+            score_entry(entry, examples)
+        except ValidationError as e:  # named by the file the user gave, not the staged copy
+            raise ValidationError(
+                f"{predictions} cannot be added as {method}/{spec.folder}", e.problems or [e.message]
+            ) from None
         folder.mkdir(parents=True, exist_ok=True)
         for f in ("predictions.csv.gz", "entry.yaml"):
             with atomic_write(folder / f, "wb") as fh:

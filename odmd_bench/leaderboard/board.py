@@ -140,7 +140,7 @@ def score_predictions(data: bytes, entry: Entry, examples: Mapping[str, Examples
         wrong = f"the file holds split {parsed.split!r} but the entry is for {entry.split!r}"
         raise ValidationError(title, [wrong, *parsed.problems.lines()])
     try:
-        preds = check_coverage(parsed, {s: len(ex) for s, ex in examples.items()})
+        preds = check_coverage(parsed, {s: len(ex) for s, ex in examples.items()}, board=True)
     except ValidationError as e:
         raise ValidationError(title, e.problems or [e.message]) from None
     return score(preds, examples)
@@ -169,7 +169,8 @@ def score_entry(entry: Entry, examples: Mapping[str, Examples]) -> EvaluationRes
 
 
 def _problem_lines(err: OdmdError) -> list[str]:
-    return [err.message, *(f"  {p}" for p in err.problems)]
+    """One line per problem, each saying which entry it is of (so that they count right)."""
+    return [f"{err.message}: {p}" for p in err.problems] or [err.message]
 
 
 def _duplicates(spec: BoardSpec, scored: dict[str, tuple[Entry, EvaluationResult]]) -> list[str]:
