@@ -546,6 +546,27 @@ def test_boards_match_the_registry() -> None:
         )
 
 
+def test_a_copy_of_another_entrys_predictions_is_refused(board: Path, v1_data_dir: Path) -> None:
+    """Equal scores would let a copy (ties broken by method id) take the original's place."""
+    import shutil
+
+    source = board / lb.ENTRIES / "box-ls" / "odmd-v1-test"
+    copy = board / lb.ENTRIES / "aaa-copy" / "odmd-v1-test"
+    shutil.copytree(source, copy)
+    meta = yaml.safe_load((copy / "entry.yaml").read_text())
+    (copy / "entry.yaml").write_text(
+        yaml.safe_dump(meta | {"method": "aaa-copy", "name": "Copy", "calibrated": False}, sort_keys=False)
+    )
+    problems = _check(board, v1_data_dir)
+    assert (
+        "aaa-copy/odmd-v1-test and box-ls/odmd-v1-test have the same predictions on every set of "
+        "odmd-v1 test; a copy is not a new result: remove the copy"
+    ) in problems, problems
+    # one changed estimate makes it a result of its own (here: a worse one, ranked below)
+    _rewrite_gz(copy / "predictions.csv.gz", lambda t: t.replace("\ntest,normal,0,", "\ntest,normal,0,9", 1))
+    assert not any("a copy is not a new result" in q for q in _check(board, v1_data_dir))
+
+
 def test_a_link_to_another_entrys_predictions_fails_check(board: Path, v1_data_dir: Path) -> None:
     mine = board / lb.ENTRIES / "box-ls" / "odmd-v1-test" / "predictions.csv.gz"
     mine.unlink()

@@ -10,6 +10,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
 from odmd_bench.data.examples import Examples
 from odmd_bench.data.registry import get_benchmark, set_file
 from odmd_bench.errors import DataError, OdmdError, ValidationError
@@ -176,8 +178,8 @@ def _problem_lines(err: OdmdError) -> list[str]:
 def _duplicates(spec: BoardSpec, scored: dict[str, tuple[Entry, EvaluationResult]]) -> list[str]:
     """Drop from ``scored`` each entry whose name an earlier one has; a problem line for each.
 
-    Two rows of one name could not be told apart. (Identical estimates under two names
-    are allowed: they share a rank group.)
+    Two rows of one name could not be told apart. (Identical estimates on every set are
+    refused as a copy by :func:`_copies`.)
     """
     problems = []
     seen: dict[str, Entry] = {}
@@ -189,6 +191,40 @@ def _duplicates(spec: BoardSpec, scored: dict[str, tuple[Entry, EvaluationResult
                 "rename one of them"
             )
             del scored[method]
+    problems += _copies(spec, scored)
+    return problems
+
+
+def _copies(spec: BoardSpec, scored: dict[str, tuple[Entry, EvaluationResult]]) -> list[str]:
+    """Drop from ``scored`` each entry whose predictions an earlier entry has on every set.
+
+    A copy is not a new result, and with equal scores it could take the original's place
+    (ties are broken by method id). Which is the copy cannot be known from the files, so
+    the problem names both (and fails ``check``); the board keeps the earlier date (then
+    the lower method id).
+    """
+    problems = []
+    kept: list[tuple[Entry, EvaluationResult]] = []
+    for method, (entry, result) in sorted(scored.items(), key=lambda kv: (kv[1][0].meta.date, kv[0])):
+        same = next(
+            (
+                other
+                for other, theirs in kept
+                if all(
+                    np.array_equal(result.predictions[s], theirs.predictions[s], equal_nan=True)
+                    for s in spec.sets
+                )
+            ),
+            None,
+        )
+        if same is None:
+            kept.append((entry, result))
+            continue
+        problems.append(
+            f"{same.key} and {entry.key} have the same predictions on every set of {spec.key}; "
+            "a copy is not a new result: remove the copy"
+        )
+        del scored[method]
     return problems
 
 
