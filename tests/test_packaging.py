@@ -155,3 +155,21 @@ def test_no_module_is_shadowed_by_an_attribute_of_its_package() -> None:
         if getattr(parent, child) is not module:
             shadowed.append(info.name)
     assert not shadowed
+
+
+def test_the_manifests_are_found_from_a_source_checkout_too(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Python started in the repository's root imports its odmd_bench/, which has no splits."""
+    from importlib import resources
+
+    from odmd_bench.data import manifests
+
+    def missing(name: str) -> None:
+        raise ModuleNotFoundError(f"No module named {name!r}", name=name)
+
+    monkeypatch.setattr(resources, "files", missing)
+    checkout = Path(manifests.__file__).resolve().parents[2] / "splits"
+    if (checkout / "odmd-v1.json").is_file():  # the tests run on the source tree
+        assert manifests.splits_dir() == checkout
+    else:  # on the installed wheel, where a missing odmd_bench.splits is a broken install
+        with pytest.raises(odmd_bench.DataError, match="are not installed; reinstall odmd-bench"):
+            manifests.splits_dir()

@@ -12,8 +12,21 @@ from odmd_bench.errors import DataError
 
 
 def splits_dir() -> Path:
-    """The folder holding the manifests and the committed robot sets."""
-    return Path(str(resources.files("odmd_bench.splits")))
+    """The folder holding the manifests and the committed robot sets.
+
+    Installed, it is the package ``odmd_bench.splits``. Imported from a source checkout
+    instead (Python started in the repository's root, where ``odmd_bench/`` shadows the
+    installed package and has no ``splits`` inside), it is the checkout's ``splits/``.
+    """
+    try:
+        return Path(str(resources.files("odmd_bench.splits")))
+    except ModuleNotFoundError:
+        checkout = Path(__file__).resolve().parents[2] / "splits"
+        if (checkout / "odmd-v1.json").is_file():
+            return checkout
+        raise DataError(
+            "the pinned manifests (odmd_bench.splits) are not installed; reinstall odmd-bench"
+        ) from None
 
 
 @cache
