@@ -506,3 +506,20 @@ def test_spreadsheet_trailing_commas_and_utf16_without_a_mark(data: Path, tmp_pa
     assert (
         code == 2 and "looks like UTF-16 text without a byte-order mark" in err and "save it as UTF-8" in err
     )
+
+
+def test_the_readmes_evaluate_output_is_what_the_commands_print(
+    v1_data_dir: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """README.md's quick start: `baseline box-ls -o box-ls.csv` then `evaluate box-ls.csv`."""
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8")
+    intro = "`evaluate` prints (Box_LS on `odmd-v1` test):\n\n```\n"
+    start = readme.index(intro) + len(intro)
+    shown = readme[start : readme.index("```", start)]
+    monkeypatch.chdir(tmp_path)
+    runner = CliRunner()
+    made = runner.invoke(cli, ["baseline", "box-ls", "-o", "box-ls.csv", "--data-dir", str(v1_data_dir)])
+    assert made.exit_code == 0, made.output
+    r = runner.invoke(cli, ["evaluate", "box-ls.csv", "--data-dir", str(v1_data_dir)])
+    assert r.exit_code == 0, r.output
+    assert r.stdout == shown
