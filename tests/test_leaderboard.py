@@ -170,17 +170,31 @@ def test_build_then_check_passes(board: Path, v1_data_dir: Path) -> None:
     assert "## odmd-v1 test" in md and "(generator v1 + imported robot)" in md
 
 
-def test_identical_predictions_share_group_1_in_id_order(
-    board: Path, v1_data_dir: Path, v1_preds: dict[str, Path]
+def _nudged(path: Path, tmp_path: Path) -> Path:
+    """The predictions of ``path`` with its first estimate 1e-9 m deeper: not a copy."""
+    lines = path.read_text().splitlines(keepends=True)
+    fields = lines[1].rstrip("\n").split(",")
+    fields[3] = repr(float(fields[3]) + 1e-9)
+    out = tmp_path / f"nudged-{path.name}"
+    out.write_text("".join([lines[0], ",".join(fields) + "\n", *lines[2:]]))
+    return out
+
+
+def test_a_copy_is_refused_and_nearly_identical_predictions_share_group_1(
+    board: Path, v1_data_dir: Path, v1_preds: dict[str, Path], tmp_path: Path
 ) -> None:
     _add(board, v1_data_dir, v1_preds["box_ls"], "a-copy")
+    with pytest.raises(ValidationError) as info:
+        lb.build(board, v1_data_dir, n_resamples=FAST)
+    assert "a-copy/odmd-v1-test and box-ls/odmd-v1-test have the same predictions" in info.value.render()
+    shutil.rmtree(board / lb.ENTRIES / "a-copy")
+    _add(board, v1_data_dir, _nudged(v1_preds["box_ls"], tmp_path), "a-near")
     built = lb.build(board, v1_data_dir, n_resamples=FAST)
     rows = next(b for b in built.boards if b.rows).rows
-    assert [(r.entry.method, r.group) for r in rows] == [("a-copy", 1), ("box-ls", 1), ("expansion", 2)]
-    assert rows[1].leader == "a-copy" and rows[1].versus_leader is not None
-    assert rows[1].versus_leader.difference == 0.0
-    assert "| 1 | [BOX-LS](entries/box-ls/odmd-v1-test/) |" in built.markdown
-    assert "| +0.00 [+0.00, +0.00] |" in built.markdown
+    assert [(r.entry.method, r.group) for r in rows] == [("box-ls", 1), ("a-near", 1), ("expansion", 2)]
+    assert rows[1].leader == "box-ls" and rows[1].versus_leader is not None
+    assert abs(rows[1].versus_leader.difference) < 1e-6
+    assert "| 1 | [A-NEAR](entries/a-near/odmd-v1-test/) |" in built.markdown
 
 
 def test_plain_csv_predictions_are_read_too(board: Path, v1_data_dir: Path) -> None:
@@ -461,7 +475,8 @@ def test_cli_add_makes_an_entry_that_build_ranks(
     monkeypatch.setattr(ranking, "RANK_RESAMPLES", FAST)
     runner = CliRunner()
     common = ["--root", str(board), "--data-dir", str(v1_data_dir)]
-    args = ["leaderboard", "add", str(v1_preds["expansion"]), "--method", "exp2", "--name", "Exp 2"]
+    nudged = _nudged(v1_preds["expansion"], board.parent)  # the expansion entry's, not a copy
+    args = ["leaderboard", "add", str(nudged), "--method", "exp2", "--name", "Exp 2"]
     args += [
         "--description",
         "d",
