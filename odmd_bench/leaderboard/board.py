@@ -191,7 +191,6 @@ def _duplicates(spec: BoardSpec, scored: dict[str, tuple[Entry, EvaluationResult
                 "rename one of them"
             )
             del scored[method]
-    problems += _copies(spec, scored)
     return problems
 
 
@@ -203,25 +202,19 @@ def _copies(spec: BoardSpec, scored: dict[str, tuple[Entry, EvaluationResult]]) 
     the problem names both (and fails ``check``); the board keeps the earlier date (then
     the lower method id).
     """
+
+    def same(a: EvaluationResult, b: EvaluationResult) -> bool:
+        return all(np.array_equal(a.predictions[s], b.predictions[s], equal_nan=True) for s in spec.sets)
+
     problems = []
     kept: list[tuple[Entry, EvaluationResult]] = []
     for method, (entry, result) in sorted(scored.items(), key=lambda kv: (kv[1][0].meta.date, kv[0])):
-        same = next(
-            (
-                other
-                for other, theirs in kept
-                if all(
-                    np.array_equal(result.predictions[s], theirs.predictions[s], equal_nan=True)
-                    for s in spec.sets
-                )
-            ),
-            None,
-        )
-        if same is None:
+        first = next((other for other, theirs in kept if same(result, theirs)), None)
+        if first is None:
             kept.append((entry, result))
             continue
         problems.append(
-            f"{same.key} and {entry.key} have the same predictions on every set of {spec.key}; "
+            f"{first.key} and {entry.key} have the same predictions on every set of {spec.key}; "
             "a copy is not a new result: remove the copy"
         )
         del scored[method]
@@ -251,6 +244,7 @@ def _score_board(
         except ValidationError as err:
             problems += _problem_lines(err)
     problems += _duplicates(spec, scored)
+    problems += _copies(spec, scored)
     if not scored:
         return None, problems
     ranked = rank_groups({m: r.percent_errors() for m, (_, r) in scored.items()}, n_resamples=n_resamples)
