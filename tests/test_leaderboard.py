@@ -183,7 +183,25 @@ def _nudged(path: Path, tmp_path: Path) -> Path:
 def test_a_copy_is_refused_and_nearly_identical_predictions_share_group_1(
     board: Path, v1_data_dir: Path, v1_preds: dict[str, Path], tmp_path: Path
 ) -> None:
-    _add(board, v1_data_dir, v1_preds["box_ls"], "a-copy")
+    before = sorted(board.rglob("*"))
+    with pytest.raises(ValidationError) as info:
+        _add(board, v1_data_dir, v1_preds["box_ls"], "a-copy")
+    assert info.value.problems == [
+        "its predictions are those of box-ls/odmd-v1-test on every set of odmd-v1 test; "
+        "a copy is not a new result"
+    ]
+    assert f"{v1_preds['box_ls']} cannot be added as a-copy/odmd-v1-test" in info.value.render()
+    assert sorted(board.rglob("*")) == before  # nothing written
+    # Replacing an entry with its own predictions again is not a copy.
+    source = board / lb.ENTRIES / "box-ls" / "odmd-v1-test"
+    _add(board, v1_data_dir, v1_preds["box_ls"], "box-ls", replace=True)
+    # A copy made by hand, not by add, is refused by build (and check).
+    copy = board / lb.ENTRIES / "a-copy" / "odmd-v1-test"
+    shutil.copytree(source, copy)
+    meta = yaml.safe_load((copy / "entry.yaml").read_text())
+    (copy / "entry.yaml").write_text(
+        yaml.safe_dump(meta | {"method": "a-copy", "name": "Copy"}, sort_keys=False)
+    )
     with pytest.raises(ValidationError) as info:
         lb.build(board, v1_data_dir, n_resamples=FAST)
     assert "a-copy/odmd-v1-test and box-ls/odmd-v1-test have the same predictions" in info.value.render()
@@ -338,9 +356,9 @@ def test_plot_is_written(board: Path, v1_data_dir: Path) -> None:
 
 
 def test_two_entries_of_one_name_take_one_row(
-    board: Path, v1_data_dir: Path, v1_preds: dict[str, Path]
+    board: Path, v1_data_dir: Path, v1_preds: dict[str, Path], tmp_path: Path
 ) -> None:
-    _add(board, v1_data_dir, v1_preds["expansion"], "expansion-2", name="EXPANSION")
+    _add(board, v1_data_dir, _nudged(v1_preds["expansion"], tmp_path), "expansion-2", name="EXPANSION")
     boards, problems = lb.collect(board, v1_data_dir, n_resamples=FAST)
     assert problems == [
         "expansion-2/odmd-v1-test: has the name 'EXPANSION' of expansion/odmd-v1-test on odmd-v1 test; "

@@ -10,12 +10,14 @@ import tempfile
 from pathlib import Path
 
 from odmd_bench.data.atomic import atomic_write
+from odmd_bench.data.examples import Examples
 from odmd_bench.errors import UsageError, ValidationError
-from odmd_bench.leaderboard.board import load_board_data, score_entry
+from odmd_bench.evaluation.scoring import EvaluationResult
+from odmd_bench.leaderboard.board import load_board_data, same_predictions, score_entry
 from odmd_bench.leaderboard.entry import Entry
-from odmd_bench.leaderboard.files import ENTRIES, read_entry, read_predictions_bytes
+from odmd_bench.leaderboard.files import ENTRIES, discover, read_entry, read_predictions_bytes
 from odmd_bench.leaderboard.rules import method_id_problems
-from odmd_bench.leaderboard.specs import board_spec
+from odmd_bench.leaderboard.specs import BoardSpec, board_spec
 
 
 def _gzip_bytes(data: bytes) -> bytes:
@@ -30,6 +32,28 @@ def _read_input(path: Path) -> bytes:
         return read_predictions_bytes(path)
     except ValidationError as e:
         raise ValidationError(f"{path} cannot be added", e.problems) from None
+
+
+def _copied_from(
+    root: Path, spec: BoardSpec, method: str, result: EvaluationResult, examples: dict[str, Examples]
+) -> list[str]:
+    """The other entries of the board whose predictions ``result`` has on every set.
+
+    An entry that cannot be read or scored is passed over here: ``check`` names its problem.
+    """
+    if not (root / ENTRIES).is_dir():
+        return []
+    found = []
+    for folder in discover(root):
+        if folder.name != spec.folder or folder.parent.name == method:
+            continue
+        try:
+            other = read_entry(folder, root.parent)
+            if same_predictions(result, score_entry(other, examples), spec.sets):
+                found.append(other.key)
+        except (ValidationError, OSError):
+            continue
+    return found
 
 
 def add_entry(
@@ -60,8 +84,9 @@ def add_entry(
     do; only then are ``predictions.csv.gz`` and ``entry.yaml`` written.
 
     Raises:
-        ValidationError: When the predictions or the metadata are not acceptable
-            (nothing is written).
+        ValidationError: When the predictions or the metadata are not acceptable, or
+            the predictions are another entry's of the board on every set (nothing is
+            written).
         UsageError: When there is no board for ``benchmark`` ``split``, the entry exists
             and ``replace`` is false, or its folder is a symbolic link.
     """
@@ -103,13 +128,22 @@ def add_entry(
         (staged / "entry.yaml").write_text(
             yaml.safe_dump(meta, sort_keys=False, allow_unicode=True, width=100), encoding="utf-8"
         )
+        title = f"{predictions} cannot be added as {method}/{spec.folder}"
         try:
             entry = read_entry(staged, root.parent)
-            score_entry(entry, examples)
+            result = score_entry(entry, examples)
         except ValidationError as e:  # named by the file the user gave, not the staged copy
+            raise ValidationError(title, e.problems or [e.message]) from None
+        copied = _copied_from(root, spec, method, result, examples)
+        if copied:
             raise ValidationError(
-                f"{predictions} cannot be added as {method}/{spec.folder}", e.problems or [e.message]
-            ) from None
+                title,
+                [
+                    f"its predictions are those of {key} on every set of {spec.key}; "
+                    "a copy is not a new result"
+                    for key in copied
+                ],
+            )
         folder.mkdir(parents=True, exist_ok=True)
         for f in ("predictions.csv.gz", "entry.yaml"):
             with atomic_write(folder / f, "wb") as fh:

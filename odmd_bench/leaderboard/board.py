@@ -194,6 +194,11 @@ def _duplicates(spec: BoardSpec, scored: dict[str, tuple[Entry, EvaluationResult
     return problems
 
 
+def same_predictions(a: EvaluationResult, b: EvaluationResult, sets: tuple[str, ...]) -> bool:
+    """Whether two results hold the same estimates, bit for bit, on every one of ``sets``."""
+    return all(np.array_equal(a.predictions[s], b.predictions[s], equal_nan=True) for s in sets)
+
+
 def _copies(spec: BoardSpec, scored: dict[str, tuple[Entry, EvaluationResult]]) -> list[str]:
     """Drop from ``scored`` each entry whose predictions an earlier entry has on every set.
 
@@ -202,14 +207,10 @@ def _copies(spec: BoardSpec, scored: dict[str, tuple[Entry, EvaluationResult]]) 
     the problem names both (and fails ``check``); the board keeps the earlier date (then
     the lower method id).
     """
-
-    def same(a: EvaluationResult, b: EvaluationResult) -> bool:
-        return all(np.array_equal(a.predictions[s], b.predictions[s], equal_nan=True) for s in spec.sets)
-
     problems = []
     kept: list[tuple[Entry, EvaluationResult]] = []
     for method, (entry, result) in sorted(scored.items(), key=lambda kv: (kv[1][0].meta.date, kv[0])):
-        first = next((other for other, theirs in kept if same(result, theirs)), None)
+        first = next((other for other, theirs in kept if same_predictions(result, theirs, spec.sets)), None)
         if first is None:
             kept.append((entry, result))
             continue
