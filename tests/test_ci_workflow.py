@@ -19,6 +19,8 @@ from typing import Any
 import pytest
 import yaml
 
+import odmd_bench
+
 WORKFLOW = Path(__file__).resolve().parents[1] / "docs" / "ci-workflow.yml"
 
 
@@ -44,7 +46,7 @@ def repo(tmp_path: Path) -> tuple[Path, dict[str, str]]:
     """A folder standing for the method's repository checkout, and the steps' environment."""
     env = dict(os.environ)
     job_env = _job()["env"]
-    assert set(job_env) == {"ODMD_BENCH_DATA"}
+    assert set(job_env) == {"ODMD_BENCH_DATA", "ODMD_BENCH_SOURCE"}
     env["ODMD_BENCH_DATA"] = str(tmp_path / "data")
     env["PATH"] = os.path.dirname(sys.executable) + os.pathsep + env["PATH"]
     work = tmp_path / "repo"
@@ -60,7 +62,10 @@ def test_the_workflow_has_the_documented_steps() -> None:
     names = [s["name"] for s in _job()["steps"]]
     skipped = [s["name"] for s in _job()["steps"] if _set_up(s)]
     assert skipped == ["Check out", "Set up Python", "Install", "Keep the predictions"]
-    assert "pip install odmd-bench" in _job()["steps"][names.index("Install")]["run"]
+    install = _job()["steps"][names.index("Install")]["run"]
+    assert 'pip install "$ODMD_BENCH_SOURCE"' in install  # odmd-bench is not on PyPI
+    source = _job()["env"]["ODMD_BENCH_SOURCE"]
+    assert source.startswith("odmd-bench @ git+") and "@v" + odmd_bench.__version__ in source
     steps = _steps()
     assert list(steps) == [
         "Generate the benchmark",
