@@ -24,6 +24,21 @@ def _cap(text: str) -> str:
     return f"{text[:MAX_LINE]}... ({len(text) - MAX_LINE} more characters)"
 
 
+def show_value(value: Any, limit: int = 80) -> str:
+    """``value`` for a message: its ``repr`` when a plain value, else its type, cut to ``limit``.
+
+    Never raises: input under suspicion (a configuration, a pickle) may hold an integer of
+    more digits than Python prints, or an object whose ``repr`` fails.
+    """
+    plain = str | bytes | int | float | tuple | list | None
+    try:
+        text = repr(value) if isinstance(value, plain) else type(value).__name__
+    except (ValueError, RecursionError):  # an integer too long to print; a list holding itself
+        kind = type(value).__name__
+        text = f"{'an' if kind[:1] in 'aeiou' else 'a'} {kind} too large to print"
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
 class OdmdError(Exception):
     """Base class of every error the package raises on purpose.
 

@@ -125,7 +125,11 @@ def test_reimport_keeps_other_sets(original_release, tmp_path) -> None:
         ("fx_norm", [1, 2], "fx_norm = [1, 2] does not match the HSR camera"),
         ("image_dim", ["abc", 640], "image_dim = ['abc', 640] is not two positive whole numbers"),
         ("image_dim", [float("nan"), 640], "image_dim = [nan, 640] is not two positive whole numbers"),
+        # integers too large for a float, and too long to print
+        ("image_dim", [10**5000, 640], "image_dim = a list too large to print is not two positive"),
+        ("fx_norm", 10**5000, "fx_norm = an int too large to print does not match the HSR camera"),
     ],
+    ids=["fx-text", "fx-list", "dim-text", "dim-nan", "dim-huge-int", "fx-huge-int"],
 )
 def test_malformed_metadata_of_an_unknown_file_is_refused(
     original_release, tmp_path, key: str, value: object, words: str

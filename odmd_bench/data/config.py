@@ -15,7 +15,7 @@ from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
-from odmd_bench.errors import ConfigError
+from odmd_bench.errors import ConfigError, show_value
 
 Vec3 = tuple[float, float, float]
 Range = tuple[float, float]
@@ -25,22 +25,9 @@ Range = tuple[float, float]
 MAX_N_OBS = 1000
 
 
-def _show(value: Any) -> str:
-    """A value for a message, cut short (a configuration may hold anything)."""
-    try:
-        text = (
-            repr(value)
-            if isinstance(value, str | int | float | tuple | list | None)
-            else type(value).__name__
-        )
-    except ValueError:  # an integer of more digits than Python converts
-        text = f"a {type(value).__name__} too large to print"
-    return text if len(text) <= 80 else text[:77] + "..."
-
-
 def _finite(name: str, value: Any, problems: list[str]) -> None:
     if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
-        problems.append(f"{name}: expected a finite number, got {_show(value)}")
+        problems.append(f"{name}: expected a finite number, got {show_value(value)}")
 
 
 @dataclass(frozen=True)
@@ -114,12 +101,12 @@ class GeneratorConfig:
             or not isinstance(self.n_obs, int)
             or not 2 <= self.n_obs <= MAX_N_OBS
         ):
-            problems.append(f"n_obs: expected an integer from 2 to {MAX_N_OBS}, got {_show(self.n_obs)}")
+            problems.append(f"n_obs: expected an integer from 2 to {MAX_N_OBS}, got {show_value(self.n_obs)}")
         typed: set[str] = set()  # the fields whose type is right, checked further below
         for name, size in (("object_size", 2), ("initial_depth", 2), ("move_min", 3), ("move_max", 3)):
             value = getattr(self, name)
             if not isinstance(value, tuple) or len(value) != size:
-                problems.append(f"{name}: expected {size} numbers, got {_show(value)}")
+                problems.append(f"{name}: expected {size} numbers, got {show_value(value)}")
                 continue
             before = len(problems)
             for i, v in enumerate(value):
@@ -194,7 +181,7 @@ class GeneratorConfig:
             raise ConfigError(f"a generator configuration must be a mapping, got {type(data).__name__}")
         base = base or PRESETS["odmd"]
         known = {f.name for f in fields(cls)}
-        problems = [f"key {_show(k)} is not a name" for k in data if not isinstance(k, str)]
+        problems = [f"key {show_value(k)} is not a name" for k in data if not isinstance(k, str)]
         unknown = sorted(k for k in data if isinstance(k, str) and k not in known)
         problems += [f"unknown key {k!r} (known: {', '.join(sorted(known))})" for k in unknown]
         camera = base.camera
@@ -202,9 +189,11 @@ class GeneratorConfig:
             cam = data["camera"]
             cam_known = {f.name for f in fields(CameraConfig)}
             if not isinstance(cam, Mapping):
-                problems.append(f"camera: expected a mapping, got {_show(cam)}")
+                problems.append(f"camera: expected a mapping, got {show_value(cam)}")
             else:
-                problems += [f"camera: key {_show(k)} is not a name" for k in cam if not isinstance(k, str)]
+                problems += [
+                    f"camera: key {show_value(k)} is not a name" for k in cam if not isinstance(k, str)
+                ]
                 problems += [
                     f"unknown key 'camera.{k}' (known: {', '.join(sorted(cam_known))})"
                     for k in sorted(k for k in cam if isinstance(k, str) and k not in cam_known)

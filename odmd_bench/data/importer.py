@@ -31,7 +31,7 @@ from odmd_bench.data.io import set_names, write_sets
 from odmd_bench.data.manifests import known_originals
 from odmd_bench.data.registry import get_benchmark, set_file
 from odmd_bench.data.store import pin_problem, read_checked
-from odmd_bench.errors import DataError, ImportRefused, StorageError
+from odmd_bench.errors import DataError, ImportRefused, StorageError, show_value
 
 log = logging.getLogger("odmd_bench")
 
@@ -123,13 +123,11 @@ def _number(value: Any) -> float | None:
     """``value`` as a finite float, or None (a string, a list, NaN...)."""
     if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating):
         return None
-    v = float(value)
+    try:
+        v = float(value)
+    except OverflowError:  # an integer too large for a float
+        return None
     return v if np.isfinite(v) else None
-
-
-def _short(value: Any) -> str:
-    text = repr(value) if isinstance(value, str | int | float | list | tuple) else type(value).__name__
-    return text if len(text) <= 60 else text[:57] + "..."
 
 
 def convert(obj: Any, origin: str, target: Target) -> Examples:
@@ -192,7 +190,7 @@ def convert(obj: Any, origin: str, target: Target) -> Examples:
         dims = [_number(v) for v in image_dim]
         if not all(d is not None and d > 0 and d == int(d) for d in dims):
             raise ImportRefused(
-                f"{origin}: image_dim = {_short(image_dim)} is not two positive whole numbers"
+                f"{origin}: image_dim = {show_value(image_dim)} is not two positive whole numbers"
             )
         attrs["image_height"], attrs["image_width"] = int(dims[0]), int(dims[1])  # type: ignore[arg-type]
     if target.benchmark == "odmd-paper":
@@ -205,7 +203,7 @@ def convert(obj: Any, origin: str, target: Target) -> Examples:
             got = _number(bb[key])
             if got is None or not np.isclose(got, value, rtol=0, atol=1e-12):
                 raise ImportRefused(
-                    f"{origin}: {key} = {_short(bb[key])} does not match the HSR camera ({value})"
+                    f"{origin}: {key} = {show_value(bb[key])} does not match the HSR camera ({value})"
                 )
         attrs.update(
             fx=cam.fx,
