@@ -153,3 +153,90 @@ def test_a_pipe_named_like_an_original_is_refused_not_read(tmp_path) -> None:
     os.mkfifo(fifo)
     with pytest.raises(ImportRefused, match="not a regular file nor a folder"):
         import_release(fifo, tmp_path / "data")
+
+
+def _set_last_depth(o: dict, v: float) -> None:
+    o["bb"]["bboxes"][-1, 4, 0] = v
+
+
+def _nan_camera(o: dict) -> None:
+    o["bb_3D"]["camera_movement"][3, 1, 7] = np.nan
+
+
+def _inf_box(o: dict) -> None:
+    o["bb"]["bboxes"][2, 0, 5] = np.inf
+
+
+def _never_detected(o: dict) -> None:
+    o["bb"]["bboxes"][:, 2, 9] = 0.0
+
+
+def _one_observation(o: dict) -> None:
+    o["bb"]["bboxes"] = o["bb"]["bboxes"][:1]
+    o["bb_3D"]["camera_movement"] = o["bb_3D"]["camera_movement"][:0]
+    del o["bb_3D"]["positions"]
+
+
+@pytest.mark.parametrize(
+    ("alter", "words"),
+    [
+        (
+            lambda o: _set_last_depth(o, 0.0),
+            "1 example(s) with a true depth that is not finite and > 0 (first: [0])",
+        ),
+        (
+            lambda o: _set_last_depth(o, -1.0),
+            "1 example(s) with a true depth that is not finite and > 0 (first: [0])",
+        ),
+        (
+            lambda o: _set_last_depth(o, np.nan),
+            "1 example(s) with a true depth that is not finite and > 0 (first: [0])",
+        ),
+        (_nan_camera, "1 example(s) with a camera position that is not finite (first: [7])"),
+        (_inf_box, "1 example(s) with a detected box that is not finite (first: [5])"),
+        (_never_detected, "1 example(s) with no detection at any observation (first: [9])"),
+        (_one_observation, "every example needs at least two observations, these have 1"),
+    ],
+    ids=[
+        "zero-depth",
+        "negative-depth",
+        "nan-depth",
+        "nan-camera",
+        "inf-box",
+        "no-detection",
+        "one-observation",
+    ],
+)
+def test_an_altered_file_that_cannot_be_scored_against_is_refused(
+    original_release, tmp_path, alter, words: str
+) -> None:
+    """--allow-unknown admits altered numbers, never a set on which percent error is undefined."""
+    obj = safe_unpickle(
+        (original_release / "odmd" / "test" / "test_normal.pk").read_bytes(), "test_normal.pk"
+    )
+    alter(obj)
+    path = tmp_path / "test_normal.pk"
+    path.write_bytes(pickle.dumps(obj, protocol=3))
+    with pytest.raises(ImportRefused, match="nothing was written") as info:
+        import_release(path, tmp_path / "data", allow_unknown=True)
+    assert f"{path}: not usable as a benchmark set" in info.value.render()
+    assert f"\n  - {words}" in info.value.render()
+    assert not (tmp_path / "data").exists()
+
+
+def test_every_pinned_set_is_usable(paper_data_dir, v1_data_dir) -> None:
+    """The checks the importer applies hold for every set odmd-bench makes or imports.
+
+    Some detections of the release have a zero or negative width or height (they are
+    kept, as the release has them); the checks do not refuse those.
+    """
+    from odmd_bench.data.examples import set_problems
+
+    for benchmark, data in (
+        ("odmd-paper", paper_data_dir),
+        ("odms-detection", paper_data_dir),
+        ("odmd-v1", v1_data_dir),
+    ):
+        for split in ("val", "test"):
+            for s, ex in odmd_bench.load_split(split, benchmark, data).items():
+                assert set_problems(ex) == [], (benchmark, split, s)

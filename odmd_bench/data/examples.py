@@ -160,6 +160,42 @@ class Examples:
         )
 
 
+def set_problems(ex: Examples) -> list[str]:
+    """What makes ``ex`` unusable as a benchmark set, one line per kind (empty when usable).
+
+    A set is scored as ``|Z - Z_hat| / Z``, so every true depth must be known, finite
+    and positive; the camera positions must be finite; a detected box must be finite
+    (its size may be zero: the original release has such detections); every example
+    needs two observations and a detection; an observation's depth is positive or unknown (NaN). The sets
+    odmd-bench generates or imports from the pinned original files all pass; a file
+    imported with ``--allow-unknown`` may not.
+    """
+    if len(ex) == 0:
+        return ["the set has no examples"]
+    if ex.n_obs < 2:
+        return [f"every example needs at least two observations, these have {ex.n_obs}"]
+
+    def where(bad: Any, what: str) -> list[str]:
+        rows = np.flatnonzero(bad)
+        if not rows.size:
+            return []
+        return [f"{rows.size} example(s) {what} (first: {rows[:5].tolist()})"]
+
+    depth = np.asarray(ex.depth, dtype=np.float64)
+    boxes_ok = np.isfinite(ex.boxes).all(axis=2) | ~ex.detected
+    problems = where(~(np.isfinite(depth) & (depth > 0)), "with a true depth that is not finite and > 0")
+    problems += where(~np.isfinite(ex.camera).all(axis=(1, 2)), "with a camera position that is not finite")
+    problems += where(~boxes_ok.all(axis=1), "with a detected box that is not finite")
+    problems += where(~ex.detected.any(axis=1), "with no detection at any observation")
+    if ex.observation_depth is not None:
+        od = ex.observation_depth
+        problems += where(
+            ~((od > 0) & np.isfinite(od) | np.isnan(od)).all(axis=1),
+            "with an observation depth that is not positive, finite or unknown (NaN)",
+        )
+    return problems
+
+
 def nearest_detected_index(detected: np.ndarray, use: np.ndarray | None = None) -> np.ndarray:
     """For each observation, the index of the nearest observation with a detection.
 

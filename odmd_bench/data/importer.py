@@ -25,7 +25,7 @@ import numpy as np
 
 from odmd_bench.data.atomic import clean_stale_temps, locked
 from odmd_bench.data.config import HSR_GRASP_CAMERA
-from odmd_bench.data.examples import Examples
+from odmd_bench.data.examples import Examples, set_problems
 from odmd_bench.data.hashing import group_attrs
 from odmd_bench.data.io import set_names, write_sets
 from odmd_bench.data.manifests import known_originals
@@ -130,6 +130,11 @@ def _number(value: Any) -> float | None:
     return v if np.isfinite(v) else None
 
 
+def _source_name(value: Any) -> str:
+    """The release's own name for the set (``test_name``): text, at most 200 characters."""
+    return value[:200] if isinstance(value, str) else ""
+
+
 def convert(obj: Any, origin: str, target: Target) -> Examples:
     """Turn one unpickled original file into :class:`Examples` (numbers copied exactly)."""
     problems: list[str] = []
@@ -183,7 +188,7 @@ def convert(obj: Any, origin: str, target: Target) -> Examples:
         "split": target.split,
         "set": target.set,
         "source": "import",
-        "source_name": str(obj.get("test_name", "")),
+        "source_name": _source_name(obj.get("test_name")),
     }
     image_dim = bb.get("image_dim")
     if isinstance(image_dim, list | tuple) and len(image_dim) == 2:
@@ -251,6 +256,9 @@ def read_original(path: str | os.PathLike[str], *, allow_unknown: bool = False) 
             raise ImportRefused(f"{p}: unknown file whose name says neither split nor set")
         target = guess
     ex = convert(safe_unpickle(data, str(p)), str(p), target)
+    unusable = set_problems(ex)
+    if unusable:
+        raise ImportRefused(f"{p}: not usable as a benchmark set", unusable)
     ex.attrs["source_file"] = known["path"] if known else p.name
     ex.attrs["source_sha256"] = digest
     ex.attrs["source_known"] = known is not None

@@ -24,10 +24,10 @@ from typing import Any
 
 import numpy as np
 
-from odmd_bench.data.examples import Examples
+from odmd_bench.data.examples import Examples, set_problems
 from odmd_bench.data.registry import get_benchmark
 from odmd_bench.data.store import is_pinned
-from odmd_bench.errors import ValidationError
+from odmd_bench.errors import DataError, ValidationError
 from odmd_bench.evaluation.columns import OPTIONAL_COLUMNS, REQUIRED_COLUMNS
 from odmd_bench.evaluation.coverage import check_coverage, check_sets
 from odmd_bench.evaluation.metrics import all_sets_mean, set_metrics
@@ -60,6 +60,8 @@ def score(predictions: Predictions, examples: Mapping[str, Examples]) -> Evaluat
     Raises:
         ValidationError: a set's size differs from its estimates', or an error statistic
             is not finite.
+        DataError: a set cannot be scored against (:func:`~odmd_bench.data.examples.set_problems`:
+            a true depth that is not finite and positive, for instance).
     """
     from odmd_bench import __version__
 
@@ -72,6 +74,13 @@ def score(predictions: Predictions, examples: Mapping[str, Examples]) -> Evaluat
             raise ValidationError(
                 f"{predictions.path} cannot be scored",
                 [f"set {s!r} has {len(ex)} examples but {len(depth)} estimates"],
+            )
+        unusable = set_problems(ex)
+        if unusable:
+            raise DataError(
+                f"{predictions.benchmark} {predictions.split} {s} cannot be scored against: "
+                "the set is damaged or was not made by odmd-bench (regenerate or re-import it)",
+                unusable,
             )
         per_set[s] = set_metrics(ex.depth, depth)
         preds[s] = depth.copy()
