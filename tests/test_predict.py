@@ -454,3 +454,20 @@ def test_the_estimates_never_replace_the_sequences_file(tmp_path: Path) -> None:
     r = _invoke(["predict", str(seqs), "--method", "box-ls", "--image-size", "4032", "3024", "-o", str(seqs)])
     assert r.exit_code == 2 and "is the sequences file being read" in r.stderr
     assert seqs.read_bytes() == (DOCS / "sequences-example.csv").read_bytes()
+
+
+def test_boxes_wholly_outside_the_image_are_warned_of(tmp_path: Path) -> None:
+    """A box outside the image size given is likely a wrong --image-size (a photo's full size)."""
+    assert _read(GOOD).warnings == ()
+    assert _read(GOOD.replace("a,1,100,100,140,150", "a,1,-50,100,0,150")).warnings == (
+        "1 of 2 boxes lie wholly outside the 640 x 480 image (line 2): is the image size that of "
+        "the images the boxes were drawn in (width, height, pixels)?",
+    )
+    # partly outside (a box cut by the border) is fine
+    assert _read(GOOD.replace("a,1,100,100,140,150", "a,1,-50,100,10,150")).warnings == ()
+    path = tmp_path / "s.csv"
+    path.write_text(GOOD)
+    r = _invoke(["predict", str(path), "--method", "box-ls", "--image-size", "64", "48", "-o", "-"])
+    assert r.exit_code == 0
+    assert "warning: 2 of 2 boxes lie wholly outside the 64 x 48 image (lines 2, 4)" in r.stderr
+    assert "warning" not in r.stdout

@@ -139,6 +139,8 @@ def predict(
     say(f"  fallbacks: {', '.join(fallbacks) or 'none'}" + "".join(f"; {n}" for n in notes))
     if seqs.ignored_columns:
         say(f"  ignored columns: {', '.join(seqs.ignored_columns)}")
+    for line in seqs.warnings:
+        say(f"warning: {line}")
     nonpositive = int((result.depth <= 0).sum())
     if nonpositive:
         say(

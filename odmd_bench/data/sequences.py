@@ -155,6 +155,7 @@ class Sequences:
         source: where they were read from.
         ignored_columns: columns of the file that were not read.
         attrs: metadata shared by every group's examples (``source_file``).
+        warnings: legal but suspicious things (boxes wholly outside the image), one line each.
     """
 
     names: tuple[str, ...]
@@ -163,6 +164,7 @@ class Sequences:
     source: str = ""
     ignored_columns: tuple[str, ...] = ()
     attrs: dict[str, Any] = field(default_factory=dict)
+    warnings: tuple[str, ...] = ()
 
     def __len__(self) -> int:
         return len(self.names)
@@ -265,6 +267,28 @@ def read_sequences(
         source=where,
         ignored_columns=ignored,
         attrs=attrs,
+        warnings=_outside_image(rows.numbers[:, 1:5], rows.lines, size),
+    )
+
+
+def _outside_image(corners: np.ndarray, lines: np.ndarray, size: tuple[float, float]) -> tuple[str, ...]:
+    """A warning when detected boxes lie wholly outside the image: a wrong image size, likely.
+
+    Box_LS does not notice (it uses ratios of box sizes), but every method that reads
+    positions or sizes relative to the image does, DBox first among them.
+    """
+    w, h = size
+    x1, y1, x2, y2 = corners.T
+    with np.errstate(invalid="ignore"):  # NaN: a missed detection, never outside
+        outside = (x2 <= 0) | (x1 >= w) | (y2 <= 0) | (y1 >= h)
+    if not outside.any():
+        return ()
+    n_boxes = int(np.isfinite(corners).all(axis=1).sum())
+    first = ", ".join(str(x) for x in lines[outside][:3].tolist())
+    return (
+        f"{int(outside.sum())} of {n_boxes} boxes lie wholly outside the {w:g} x {h:g} image "
+        f"(line{'s' if outside.sum() > 1 else ''} {first}{', ...' if outside.sum() > 3 else ''}): "
+        "is the image size that of the images the boxes were drawn in (width, height, pixels)?",
     )
 
 
