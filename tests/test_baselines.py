@@ -474,6 +474,24 @@ def test_baseline_command_default_output_name(
     assert (tmp_path / "preds-expansion-odmd-paper-val.csv").is_file()
 
 
+def test_baseline_command_writes_stdout_with_dash_and_the_messages_to_stderr(
+    paper_data_dir: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """`-o -` as evaluate and predict read it: standard output, never a file named '-'."""
+    monkeypatch.chdir(tmp_path)
+    common = ["--benchmark", "odmd-paper", "--split", "val", "--data-dir", str(paper_data_dir)]
+    result = CliRunner().invoke(cli, ["baseline", "expansion", *common, "-o", "-"])
+    assert result.exit_code == 0, result.output
+    assert not (tmp_path / "-").exists()
+    assert result.stdout.startswith("split,set,index,depth,benchmark\n")
+    assert "wrote 9600 predictions (normal, camera, object, robot) to standard output" in result.stderr
+    assert "odmd-bench evaluate - --benchmark odmd-paper" in result.stderr
+    scored = CliRunner().invoke(
+        cli, ["evaluate", "-", "--format", "json", *common[:2], *common[4:]], input=result.stdout
+    )
+    assert scored.exit_code == 0, scored.output
+
+
 def test_baseline_command_parallax_without_intrinsics_exits_2(paper_data_dir: Path, tmp_path: Path) -> None:
     out = tmp_path / "p.csv"
     result = CliRunner().invoke(

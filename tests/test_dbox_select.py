@@ -254,6 +254,23 @@ def test_a_broken_record_is_a_clear_error(tmp_path: Path) -> None:
         dbox.load_model(path)
 
 
+def test_a_record_that_is_not_a_file_is_refused_not_passed_over(tmp_path: Path) -> None:
+    """A folder or a dangling link in the record's place would otherwise leave the weights unchecked."""
+    path = _write_checkpoint(tmp_path / "w.pt", 12, record=False)
+    record = path.with_suffix(".json")
+    record.mkdir()
+    with pytest.raises(
+        DataError, match=r"the record .*w\.json beside the DBox weights .* is not a regular file"
+    ):
+        dbox.load_model(path)
+    record.rmdir()
+    record.symlink_to(tmp_path / "nowhere.json")
+    with pytest.raises(DataError, match="is not a regular file"):
+        dbox.load_model(path)
+    record.unlink()
+    dbox.load_model(path)  # no record: a file of one's own, run as it is (its hash is reported)
+
+
 def test_observations_constant_is_the_networks_input_length() -> None:
     assert checkpoint_shapes()["linears.0.weight"][1] == 128 + dbox.OBSERVATIONS * 7
 

@@ -400,6 +400,25 @@ def test_a_failed_write_leaves_every_file_of_the_board_as_it_was(
     assert not [p for p in board.iterdir() if p.name.endswith(".tmp")]
 
 
+def test_a_file_that_cannot_be_replaced_leaves_the_readme_and_the_plot_as_they_were(
+    board: Path, v1_data_dir: Path
+) -> None:
+    """The README block, the tables, the JSON and the plot are replaced together or not at all."""
+    pytest.importorskip("matplotlib")
+    built = lb.build(board, v1_data_dir, n_resamples=FAST)
+    readme = board.parent / lb.README
+    readme.write_text(f"# project\n\n{lb.README_START}\nstale\n{lb.README_END}\n")
+    (board / lb.PLOT).write_bytes(b"old plot")
+    (board / lb.MARKDOWN).write_text("OLD\n")
+    (board / lb.JSON_FILE).unlink()
+    (board / lb.JSON_FILE).mkdir()  # a folder where the JSON belongs
+    with pytest.raises(OSError, match="a folder stands where the file belongs"):
+        lb.write(board, built)
+    assert "stale" in readme.read_text()
+    assert (board / lb.PLOT).read_bytes() == b"old plot" and (board / lb.MARKDOWN).read_text() == "OLD\n"
+    assert not [p for p in (*board.iterdir(), *board.parent.iterdir()) if p.name.endswith(".tmp")]
+
+
 def test_build_without_matplotlib_says_so(
     board: Path, v1_data_dir: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -629,6 +648,16 @@ def test_add_applies_the_same_validation_as_check(
         _add(board, v1_data_dir, v1_preds["box_ls"], str(over.pop("method", "newbie")), **over)
     assert expected in info.value.render()
     assert sorted(p for p in board.parent.rglob("*")) == before  # nothing written
+
+
+def test_add_names_a_linked_predictions_file_as_a_link(
+    board: Path, v1_data_dir: Path, v1_preds: dict[str, Path], tmp_path: Path
+) -> None:
+    link = tmp_path / "link.csv"
+    link.symlink_to(_nudged(v1_preds["box_ls"], tmp_path))
+    with pytest.raises(ValidationError) as info:
+        _add(board, v1_data_dir, link, "newbie")
+    assert info.value.problems == ["the file is a symbolic link, which is not followed; give the file itself"]
 
 
 def test_add_refuses_a_split_without_a_board(

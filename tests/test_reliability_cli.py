@@ -134,3 +134,19 @@ def test_help_names_the_data_folder_rule() -> None:
     r = CliRunner().invoke(cli, ["import", "-h"])
     text = " ".join(r.stdout.split())
     assert "$ODMD_BENCH_DATA" in text and "user data folder" in text
+
+
+def test_a_removed_current_folder_is_named_as_such(tmp_path: Path) -> None:
+    gone = tmp_path / "gone"
+    gone.mkdir()
+    code = (
+        "import os, sys\n"
+        f"os.chdir({str(gone)!r}); os.rmdir({str(gone)!r})\n"
+        "sys.argv = ['odmd-bench', 'baseline', 'box-ls']\n"
+        "from odmd_bench.cli.main import main\n"
+        "main()\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert done.returncode == 2, done.stderr
+    assert "error: the current folder no longer exists (it was removed)" in done.stderr
+    assert "Traceback" not in done.stderr

@@ -561,3 +561,108 @@ def test_a_dangling_link_as_the_data_folder_is_named_as_such(tmp_path: Path) -> 
     link = tmp_path / "data"
     link.symlink_to(tmp_path / "gone")
     _clear_error(_cli("generate", "--split", "val", env_data=link), f"a symbolic link to {tmp_path / 'gone'}")
+
+
+def test_a_pipe_in_a_data_file_place_is_replaced_by_the_writer_not_written_into(tmp_path: Path) -> None:
+    """Writing the set into the pipe would block until a reader came: forever."""
+    path = set_file("odmd-v1", "val", tmp_path)
+    path.parent.mkdir(parents=True)
+    os.mkfifo(path)
+    ex = odmd_bench.generate(5, rng=0)
+    ex.attrs.update(benchmark="odmd-v1", split="val", set="normal")
+    write_sets(path, {"normal": ex})
+    assert path.is_file() and len(read_set(path, "normal")) == 5
+
+
+def _two_files(tmp_path: Path) -> tuple[Path, Path]:
+    a, b = tmp_path / "a.txt", tmp_path / "b.txt"
+    a.write_text("old a")
+    b.write_text("old b")
+    return a, b
+
+
+def test_several_files_are_replaced_all_or_none_when_a_move_fails(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The second file cannot be replaced (an immutable file, say): the first gets its old text back."""
+    from odmd_bench.data import atomic
+
+    a, b = _two_files(tmp_path)
+    real = os.replace
+
+    def refuse_b(src: str | os.PathLike[str], dst: str | os.PathLike[str]) -> None:
+        if Path(dst) == b:
+            raise PermissionError(errno.EPERM, "Operation not permitted")
+        real(src, dst)
+
+    monkeypatch.setattr(atomic.os, "replace", refuse_b)
+    with (
+        pytest.raises(StorageError, match=r"cannot write .*b\.txt: Operation not permitted"),
+        atomic.atomic_texts([(a, "new a"), (b, "new b")]),
+    ):
+        pass
+    monkeypatch.undo()
+    assert (a.read_text(), b.read_text()) == ("old a", "old b")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.txt", "b.txt"]  # no temp, no backup left
+    # A file that did not exist before is removed again.
+    c = tmp_path / "c.txt"
+    monkeypatch.setattr(atomic.os, "replace", refuse_b)
+    with pytest.raises(StorageError), atomic.atomic_texts([(c, "new c"), (b, "new b")]):
+        pass
+    monkeypatch.undo()
+    assert not c.exists() and b.read_text() == "old b"
+
+
+def test_a_folder_in_the_place_of_one_file_stops_every_file_before_any_moves(tmp_path: Path) -> None:
+    from odmd_bench.data.atomic import atomic_paths, atomic_texts
+
+    a, b = _two_files(tmp_path)
+    b.unlink()
+    b.mkdir()
+    with (
+        pytest.raises(StorageError, match="a folder stands where the file belongs"),
+        atomic_texts([(a, "new a"), (b, "new b")], also=[tmp_path / "fig.png"]) as (fig,),
+    ):
+        fig.write_bytes(b"png")
+    assert a.read_text() == "old a" and not (tmp_path / "fig.png").exists()
+    with atomic_paths([a, tmp_path / "fig.png"]) as (ta, tf):
+        ta.write_text("new a")
+        tf.write_bytes(b"png")
+    assert a.read_text() == "new a" and (tmp_path / "fig.png").read_bytes() == b"png"
+
+
+def test_a_link_to_a_pipe_is_written_into_through_the_link() -> None:
+    """/dev/stdout leads to a pipe with no path of its own (/proc/self/fd/1 -> pipe:[N])."""
+    code = (
+        "from odmd_bench.data.atomic import atomic_write, atomic_texts\n"
+        "with atomic_write('/dev/stdout', 'w') as f: f.write('one\\n')\n"
+        "with atomic_texts([('/dev/stdout', 'two\\n')]): pass\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout == "one\ntwo\n"
+
+
+def test_a_file_name_that_is_not_utf8_is_written_back_as_its_bytes(tmp_path: Path) -> None:
+    from odmd_bench.data.atomic import atomic_texts, atomic_write
+
+    name = os.fsdecode(b"bad\xff.csv")  # as Python gets it from the command line
+    with atomic_write(tmp_path / "r.txt", "w") as fh:
+        fh.write(f"scored {name}\n")
+    with atomic_texts([(tmp_path / "s.txt", name)]):
+        pass
+    assert (tmp_path / "r.txt").read_bytes() == b"scored bad\xff.csv\n"
+    assert (tmp_path / "s.txt").read_bytes() == b"bad\xff.csv"
+
+
+def test_storage_errors_give_the_fix_of_the_kind_of_file() -> None:
+    from odmd_bench.data.atomic import storage_error
+
+    full = OSError(errno.ENOSPC, "No space left on device")
+    assert "the data folder: --data-dir" in str(storage_error(full, "/d/odmd-v1/test.h5", "write"))
+    report = str(storage_error(full, "/tmp/report.txt", "write"))
+    assert report.endswith("free space on that disk, or write to another folder")
+    # A data file another process holds open for writing (HDF5's lock) is in use, not damaged.
+    busy = OSError(errno.EAGAIN, "Resource temporarily unavailable")
+    text = str(storage_error(busy, "/d/odmd-v1/test.h5", "read", "run `odmd-bench generate` to rebuild it"))
+    assert "another process has it open for writing" in text and "rebuild" not in text

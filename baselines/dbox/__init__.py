@@ -208,6 +208,11 @@ def verify_weights(
             raise UsageError(f"weights_sha256 must be 64 hex digits, got {weights_sha256!r}")
     elif record.is_file():
         expected, source = _recorded_sha256(record), f"its record {record}"
+    elif record.exists() or record.is_symlink():  # a folder, a pipe, a link to nothing
+        raise DataError(
+            f"the record {record} beside the DBox weights {path} is not a regular file, so the "
+            "weights cannot be checked against it; remove it, or make it the record of these weights"
+        )
     elif (pinned := _release_checkpoints().get(path.name)) is not None:
         # The original release's own checkpoint, known by its name: its pinned hash.
         expected, source = pinned, "the release's hash in splits/odmd-original.json"

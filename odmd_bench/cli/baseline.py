@@ -74,7 +74,8 @@ def default_output(name: str, benchmark: str, split: str) -> Path:
     "--output",
     type=click.Path(dir_okay=False, path_type=Path),
     default=None,
-    help="Predictions CSV to write (default: preds-NAME-BENCHMARK-SPLIT.csv here).",
+    help="Predictions CSV to write ('-': stdout, the messages then go to stderr; "
+    "default: preds-NAME-BENCHMARK-SPLIT.csv here).",
 )
 @data_dir_option
 @method_options
@@ -98,10 +99,11 @@ def baseline(
     import numpy as np
 
     from odmd_bench import load_split, methods
-    from odmd_bench.evaluation.predictions import write_predictions
+    from odmd_bench.evaluation.predictions import format_predictions, write_predictions
 
+    to_stdout = output is not None and str(output) == "-"
     path = output if output is not None else default_output(name, benchmark, split)
-    misplaced = data_folder_problems({"-o": path}, data_dir)
+    misplaced = [] if to_stdout else data_folder_problems({"-o": path}, data_dir)
     if misplaced:
         raise UsageError("refusing to write the predictions", misplaced)
     method = methods.load(name)
@@ -115,24 +117,32 @@ def baseline(
     for set_name, examples in sets.items():
         depths[set_name], reports[set_name] = method.run(examples, **options)
 
-    write_predictions(path, split, depths, benchmark=benchmark)
+    if to_stdout:
+        click.echo(format_predictions(split, depths, benchmark=benchmark), nl=False)
+    else:
+        write_predictions(path, split, depths, benchmark=benchmark)
+
+    def say(line: str) -> None:
+        click.echo(line, err=to_stdout)
+
     n = sum(len(v) for v in depths.values())
-    click.echo(f"{name} on {benchmark} {split}: wrote {n} predictions ({', '.join(depths)}) to {path}")
+    where = "standard output" if to_stdout else str(path)
+    say(f"{name} on {benchmark} {split}: wrote {n} predictions ({', '.join(depths)}) to {where}")
     # The report's strings (what the method says of its run) once where every set agrees.
     said = [{k: v for k, v in r.items() if isinstance(v, str)} for r in reports.values()]
     common = {k: v for k, v in said[0].items() if all(d.get(k) == v for d in said)} if said else {}
     if common:
-        click.echo("  " + "; ".join(f"{k} {v}" for k, v in common.items()))
+        say("  " + "; ".join(f"{k} {v}" for k, v in common.items()))
     for (set_name, report), own in zip(reports.items(), said, strict=True):
         used = [f"{k} {v}" for k, v in report.items() if isinstance(v, int) and k != "n" and v]
         extra = "".join(f"; {k} {v}" for k, v in own.items() if k not in common)
-        click.echo(f"  {set_name}: fallbacks: {', '.join(used) or 'none'}{extra}")
-    hint = f"odmd-bench evaluate {path}"
+        say(f"  {set_name}: fallbacks: {', '.join(used) or 'none'}{extra}")
+    hint = f"odmd-bench evaluate {'-' if to_stdout else path}"
     if benchmark != DEFAULT_BENCHMARK:
         hint += f" --benchmark {benchmark}"
     if data_dir is not None:
         hint += f" --data-dir {data_dir}"
-    click.echo(f"score it with: {hint}")
+    say(f"score it with: {hint}" + (" (reading the predictions from standard input)" if to_stdout else ""))
 
 
 COMMANDS: list[click.Command] = [baseline]

@@ -48,7 +48,17 @@ def _silence_stdout() -> None:
 def _os_error_line(e: OSError) -> str:
     cause = e.strerror or str(e) or type(e).__name__
     where = " -> ".join(str(f) for f in (e.filename, e.filename2) if f is not None)
+    if not where and isinstance(e, FileNotFoundError) and not _cwd_exists():
+        return f"the current folder no longer exists (it was removed): {cause}; cd to a folder that exists"
     return f"{where}: {cause}" if where else cause
+
+
+def _cwd_exists() -> bool:
+    try:
+        os.getcwd()
+    except OSError:
+        return False
+    return True
 
 
 #: Entry-point group of commands that other packages add (``train-dbox`` is one).

@@ -211,16 +211,15 @@ def plot_command(
     heading = title or default_title(first.benchmark, first.split, set_name, error, curves[0].n)
     from odmd_bench.data.atomic import atomic_texts
 
-    # The numbers are written before the figure, and replace their old file only once the
-    # figure is written: a failure leaves both as they were.
+    # The numbers and the figure replace their old files together, or neither does.
     outputs: list[tuple[Path, str]] = []
     if csv_out is not None:
         numbers = format_curves_csv(
             curves, benchmark=first.benchmark, split=first.split, set_name=set_name, error=error
         )
         outputs.append((csv_out, numbers))
-    with atomic_texts(outputs):
-        draw_error_curves(curves, output, error=error, title=heading, band=band)
+    with atomic_texts(outputs, also=[output]) as (figure,):
+        draw_error_curves(curves, figure, error=error, title=heading, band=band)
     click.echo(f"wrote the figure to {output}", err=True)
     if csv_out is not None:
         click.echo(f"wrote the binned numbers to {csv_out}", err=True)

@@ -51,28 +51,42 @@ def os_cause(e: BaseException) -> tuple[str, int | None]:
     return (text[:200] + "...") if len(text) > 200 else text or type(e).__name__, None
 
 
-_ELSEWHERE = "write to another folder (the data folder: --data-dir or $ODMD_BENCH_DATA)"
+_ELSEWHERE = "write to another folder"
+_DATA_ELSEWHERE = "write to another folder (the data folder: --data-dir or $ODMD_BENCH_DATA)"
 _FIXES = {
-    errno_codes.ENOSPC: f"free space on that disk, or {_ELSEWHERE}",
-    errno_codes.EFBIG: f"raise the file size limit (ulimit -f), or {_ELSEWHERE}",
-    errno_codes.EDQUOT: f"free space within your disk quota, or {_ELSEWHERE}",
-    errno_codes.EACCES: f"make that folder writable (and its files readable), or {_ELSEWHERE}",
-    errno_codes.EPERM: f"make that folder writable, or {_ELSEWHERE}",
-    errno_codes.EROFS: f"that file system is read-only: {_ELSEWHERE}",
-    errno_codes.ENOTDIR: f"a part of that path is a file, not a folder: {_ELSEWHERE}",
+    errno_codes.ENOSPC: "free space on that disk, or ELSEWHERE",
+    errno_codes.EFBIG: "raise the file size limit (ulimit -f), or ELSEWHERE",
+    errno_codes.EDQUOT: "free space within your disk quota, or ELSEWHERE",
+    errno_codes.EACCES: "make that folder writable (and its files readable), or ELSEWHERE",
+    errno_codes.EPERM: "make that file and its folder writable (lsattr shows a file made immutable), or ELSEWHERE",
+    errno_codes.EROFS: "that file system is read-only: ELSEWHERE",
+    errno_codes.ENOTDIR: "a part of that path is a file, not a folder: ELSEWHERE",
     errno_codes.EISDIR: "a folder stands where the file belongs: remove it (rm -r PATH) and run the command again",
     errno_codes.ELOOP: "the path is a loop of symbolic links: remove one of them",
 }
+#: A file that another process holds open for writing (HDF5's file locking): not damaged.
+_IN_USE = (errno_codes.EAGAIN, errno_codes.EWOULDBLOCK)
 
 
 def storage_error(
     e: BaseException, path: str | os.PathLike[str], action: str, fix: str | None = None
 ) -> StorageError:
-    """A :class:`StorageError` for ``e``: ``cannot ACTION PATH: CAUSE; FIX``."""
+    """A :class:`StorageError` for ``e``: ``cannot ACTION PATH: CAUSE; FIX``.
+
+    Without ``fix``, the fix follows the cause; a data file's (``.h5``) also names the
+    data folder's options. A file in use by another process is said to be so, whatever
+    ``fix`` says (it is not damaged: nothing needs rebuilding).
+    """
     cause, code = os_cause(e)
+    if code in _IN_USE:
+        cause, fix = (
+            f"another process has it open for writing ({cause})",
+            "wait until that process has finished, then run the command again",
+        )
+    elsewhere = _DATA_ELSEWHERE if Path(path).suffix == ".h5" else _ELSEWHERE
     hint = fix or _FIXES.get(
         code or -1, "check the path and its permissions, then run the command again"
-    ).replace("PATH", str(path))
+    ).replace("PATH", str(path)).replace("ELSEWHERE", elsewhere)
     cls = MissingDataError if code == errno_codes.ENOENT else StorageError
     return cls(f"cannot {action} {path}: {cause}; {hint}", errno=code, filename=str(path))
 
@@ -98,7 +112,7 @@ def ensure_folder(folder: Path) -> None:
             "a file",
         )
         raise StorageError(
-            f"cannot use {folder} as a folder: it is {what}; move it away, or {_ELSEWHERE}",
+            f"cannot use {folder} as a folder: it is {what}; move it away, or {_DATA_ELSEWHERE}",
             errno=errno_codes.ENOTDIR,
             filename=str(folder),
         ) from None
@@ -208,33 +222,41 @@ def clean_stale_temps(target: str | os.PathLike[str], max_age: float = STALE_TEM
     return removed
 
 
-def write_target(path: str | os.PathLike[str]) -> tuple[Path, bool]:
+def write_target(path: str | os.PathLike[str], *, into_devices: bool = True) -> tuple[Path, bool]:
     """The file that writing ``path`` changes, and whether it is replaced atomically.
 
     A symbolic link is followed (the link stays and its target gets the new content,
     as a shell's ``>`` does). A regular file, a missing one or a folder (refused when
-    written) is replaced atomically; an existing device, pipe or socket
-    (``/dev/null``, ``/dev/stdout``, a FIFO) is written into, never replaced.
+    written) is replaced atomically. An existing device, pipe or socket (``/dev/null``,
+    ``/dev/stdout``, ``/dev/fd/N``, a FIFO) is written into, never replaced, through the
+    path as given (``/dev/stdout`` leads to a pipe that has no path of its own); with
+    ``into_devices=False`` (the data files) it is replaced like a regular file instead,
+    so that a pipe in a data file's place can never block a writer.
 
     Raises:
         StorageError: the path is a loop of symbolic links, or cannot be looked at.
     """
-    target = Path(path)
-    if target.is_symlink():
-        target = Path(os.path.realpath(target))
+    given = Path(path)
     try:
-        mode = target.stat().st_mode
-    except FileNotFoundError:
-        return target, True
+        mode = os.stat(given).st_mode  # through any links
+    except FileNotFoundError:  # missing, or a link to nothing: made where the link leads
+        return (Path(os.path.realpath(given)) if given.is_symlink() else given), True
     except OSError as e:
         if e.errno in (errno_codes.ENOTDIR, errno_codes.EACCES):
-            return target, True  # the write says why, with the folder's fix
+            return given, True  # the write says why, with the folder's fix
         raise storage_error(e, path, "write") from None
-    return target, stat.S_ISREG(mode) or stat.S_ISDIR(mode)
+    replace = stat.S_ISREG(mode) or stat.S_ISDIR(mode) or not into_devices
+    if not replace:
+        return given, False
+    return (Path(os.path.realpath(given)) if given.is_symlink() else given), True
+
+
+#: Errors of a write that ran out of room (or of a failing disk): named with the file.
+_FULL = (errno_codes.ENOSPC, errno_codes.EFBIG, errno_codes.EDQUOT, errno_codes.EIO)
 
 
 @contextlib.contextmanager
-def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
+def atomic_path(path: str | os.PathLike[str], *, into_devices: bool = True) -> Iterator[Path]:
     """A temporary file name beside ``path``; on success, the file is moved over ``path``.
 
     If the body raises (or the process dies), ``path`` is untouched: an existing good
@@ -244,9 +266,10 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
     read-only folder, a folder in the file's place...) raise :class:`StorageError`.
     A symbolic link is followed, and a device or pipe is written into once the body
     succeeds (:func:`write_target`). For writers that want a file name (h5py,
-    savefig); see also :func:`atomic_write`.
+    savefig); see also :func:`atomic_write`. ``into_devices=False``: a device or pipe in
+    the file's place is replaced instead (the data files).
     """
-    target, replace = write_target(path)
+    target, replace = write_target(path, into_devices=into_devices)
     if not replace:
         with _through_temp(target) as through:
             yield through
@@ -265,12 +288,7 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
     except OSError as e:
         with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)
-        if isinstance(e, OdmdError) or e.errno not in (
-            errno_codes.ENOSPC,
-            errno_codes.EFBIG,
-            errno_codes.EDQUOT,
-            errno_codes.EIO,
-        ):
+        if isinstance(e, OdmdError) or e.errno not in _FULL:
             raise
         raise storage_error(e, target, "write") from None
     except BaseException:
@@ -305,24 +323,129 @@ def atomic_write(path: str | os.PathLike[str], mode: str = "wb") -> Iterator[IO[
 
     See :func:`atomic_path`.
     """
-    encoding = None if "b" in mode else "utf-8"  # text is UTF-8 whatever the locale
-    with atomic_path(path) as tmp, open(tmp, mode, encoding=encoding) as fh:
+    # Text is UTF-8 whatever the locale; a file name that is not UTF-8 (it reaches Python
+    # with its bytes escaped) is written back as those bytes.
+    text = "b" not in mode
+    with (
+        atomic_path(path) as tmp,
+        open(tmp, mode, encoding="utf-8" if text else None, errors="surrogateescape" if text else None) as fh,
+    ):
         yield fh
 
 
+def _backup(target: Path) -> Path | None:
+    """A second name for ``target``'s current file (a hard link, else a copy), or None if none."""
+    if not (target.is_file() and not target.is_symlink()):
+        return None
+    fd, name = _temp_beside(target)
+    os.close(fd)
+    os.unlink(name)
+    try:
+        os.link(target, name)
+    except OSError:  # a file system without hard links
+        shutil.copy2(target, name)
+    return Path(name)
+
+
+def _commit(moves: list[tuple[Path, Path]]) -> None:
+    """Move each ``(temporary, target)``; if one cannot be moved, put back those moved before.
+
+    Every target is looked at first (a folder in a file's place fails before anything
+    moves); the old files are kept under second names until every move has succeeded.
+    Only a process killed between two moves (microseconds) can leave some new files
+    beside some old ones.
+    """
+    for _, target in moves:
+        if target.is_dir() and not target.is_symlink():
+            raise storage_error(IsADirectoryError(errno_codes.EISDIR, "Is a directory"), target, "write")
+    try:
+        for tmp, _ in moves:
+            with open(tmp, "rb+") as fh:
+                os.fsync(fh.fileno())
+        backups = [_backup(target) for _, target in moves]
+    except OSError as e:
+        raise storage_error(e, moves[0][1].parent, "write into") from None
+    done = 0
+    try:
+        for tmp, target in moves:
+            os.replace(tmp, target)
+            done += 1
+    except OSError as e:
+        for (_, target), old in zip(moves[:done], backups[:done], strict=True):
+            with contextlib.suppress(OSError):
+                if old is None:
+                    os.unlink(target)
+                else:
+                    os.replace(old, target)
+        raise storage_error(e, moves[done][1], "write") from None
+    finally:
+        for old in backups:
+            if old is not None:
+                with contextlib.suppress(OSError):
+                    os.unlink(old)
+
+
 @contextlib.contextmanager
-def atomic_texts(texts: Sequence[tuple[str | os.PathLike[str], str]]) -> Iterator[None]:
+def atomic_paths(paths: Sequence[str | os.PathLike[str]]) -> Iterator[list[Path]]:
+    """Temporary file names for several paths; on success all replace their paths, or none does.
+
+    The body writes each temporary file (text, HDF5, a figure...). Then every file is
+    moved over its path; if a move fails (a file that cannot be replaced), the files
+    already moved get their old versions back, so a failure anywhere leaves every path
+    as it was. Devices and pipes among the paths (:func:`write_target`) are written into
+    after every file has been moved.
+    """
+    plans = [write_target(p) for p in paths]
+    temps: list[Path] = []
+    try:
+        for target, replace in plans:
+            if replace:
+                clean_stale_temps(target)
+                fd, tmp = _temp_beside(target)
+            else:
+                try:
+                    fd, tmp = tempfile.mkstemp(suffix=".tmp")
+                except OSError as e:
+                    raise storage_error(e, tempfile.gettempdir(), "write into") from None
+            os.close(fd)
+            temps.append(Path(tmp))
+        try:
+            yield list(temps)
+        except OSError as e:
+            if isinstance(e, OdmdError) or e.errno not in _FULL:
+                raise
+            raise storage_error(e, plans[0][0].parent, "write into") from None
+        _commit([(tmp, target) for tmp, (target, replace) in zip(temps, plans, strict=True) if replace])
+        for through, (device, replace) in zip(temps, plans, strict=True):
+            if not replace:
+                try:
+                    with open(through, "rb") as src, open(device, "wb") as dst:
+                        shutil.copyfileobj(src, dst)
+                except OSError as e:
+                    raise storage_error(e, device, "write") from None
+    finally:
+        for left in temps:
+            with contextlib.suppress(OSError):
+                os.unlink(left)
+
+
+@contextlib.contextmanager
+def atomic_texts(
+    texts: Sequence[tuple[str | os.PathLike[str], str]],
+    also: Sequence[str | os.PathLike[str]] = (),
+) -> Iterator[list[Path]]:
     """Write several text files so that none replaces its old version unless all are written.
 
-    Each ``(path, text)`` is written to its temporary file on entry; the body runs (it
-    may write further files of its own, e.g. a figure through :func:`atomic_path`); on
-    success every file is moved over its path. A failure anywhere, in the body
-    included, leaves every path as it was.
+    Each ``(path, text)`` is written to its temporary file on entry; the body runs and
+    gets the temporary files of the paths ``also`` to write (a figure, say); on success
+    every file is moved over its path (:func:`atomic_paths`). A failure anywhere, in the
+    body or in a move, leaves every path as it was.
     """
-    with contextlib.ExitStack() as stack:
-        for path, text in texts:
-            stack.enter_context(atomic_write(path, "w")).write(text)
-        yield
+    with atomic_paths([*(p for p, _ in texts), *also]) as temps:
+        for (_, text), tmp in zip(texts, temps, strict=False):
+            with open(tmp, "w", encoding="utf-8", errors="surrogateescape") as fh:
+                fh.write(text)
+        yield temps[len(texts) :]
 
 
 @contextlib.contextmanager
@@ -364,6 +487,7 @@ def locked(path: str | os.PathLike[str]) -> Iterator[Path]:
 __all__ = [
     "STALE_TEMP_SECONDS",
     "atomic_path",
+    "atomic_paths",
     "atomic_texts",
     "atomic_write",
     "clean_stale_temps",

@@ -70,7 +70,7 @@ def write_sets(
 
     hashes: dict[str, str] = {}
     target = Path(path)
-    with atomic_path(target) as tmp:
+    with atomic_path(target, into_devices=False) as tmp:
         try:
             with h5py.File(tmp, "w", track_order=True) as f:
                 f.attrs["format_version"] = FORMAT_VERSION

@@ -9,7 +9,7 @@ import os
 import tempfile
 from pathlib import Path
 
-from odmd_bench.data.atomic import atomic_write
+from odmd_bench.data.atomic import atomic_paths
 from odmd_bench.data.examples import Examples
 from odmd_bench.errors import UsageError, ValidationError
 from odmd_bench.evaluation.scoring import EvaluationResult
@@ -145,7 +145,8 @@ def add_entry(
                 ],
             )
         folder.mkdir(parents=True, exist_ok=True)
-        for f in ("predictions.csv.gz", "entry.yaml"):
-            with atomic_write(folder / f, "wb") as fh:
-                fh.write((staged / f).read_bytes())
+        names = ("predictions.csv.gz", "entry.yaml")
+        with atomic_paths([folder / f for f in names]) as temps:  # both replaced, or neither
+            for f, part in zip(names, temps, strict=True):
+                part.write_bytes((staged / f).read_bytes())
     return read_entry(folder, root.parent)

@@ -168,6 +168,10 @@ def read_predictions_bytes(path: Path) -> bytes:
     try:
         raw = read_capped(path, MAX_PREDICTIONS_BYTES)
     except OSError as e:
+        if path.is_symlink():  # O_NOFOLLOW's "too many levels of symbolic links"
+            raise ValidationError(
+                title, ["the file is a symbolic link, which is not followed; give the file itself"]
+            ) from None
         raise ValidationError(title, [f"the file cannot be read ({e.strerror or e})"]) from None
     return read_source(raw, name=str(path), title=title)[0]
 
@@ -208,17 +212,19 @@ def write(root: str | os.PathLike[str], built: Built, *, plot: bool = True) -> l
     stale = stale_readme(root, built.readme_block)
     if stale is not None:
         texts.append((stale[0], stale[2]))
-    # Every file is written before any replaces its old version: a failure (a full
-    # disk, a file size limit) leaves the board as it was, all of it.
-    with atomic_texts(texts):
-        if plot and importlib.util.find_spec("matplotlib") is None:
-            said.append(
-                f"skipped the plot {root / PLOT}: matplotlib is not installed (pip install 'odmd-bench[plot]')"
-            )
-        elif plot:
+    if plot and importlib.util.find_spec("matplotlib") is None:
+        plot = False
+        said.append(
+            f"skipped the plot {root / PLOT}: matplotlib is not installed (pip install 'odmd-bench[plot]')"
+        )
+    # Every file, the plot included, is written before any replaces its old version: a
+    # failure (a full disk, a file size limit, a file that cannot be replaced) leaves the
+    # board as it was, all of it.
+    with atomic_texts(texts, also=[root / PLOT] if plot else []) as figure:
+        if plot:
             from odmd_bench.leaderboard.plot import plot_boards
 
-            plot_boards(built.boards, root / PLOT)
+            plot_boards(built.boards, figure[0])
             said.append(f"wrote {root / PLOT}")
     said[:0] = [f"wrote {root / MARKDOWN}", f"wrote {root / JSON_FILE}"] + (
         [f"updated the leaderboard summary in {stale[0]}"] if stale is not None else []
