@@ -287,3 +287,12 @@ def test_the_readme_figure_numbers_are_what_the_command_writes(paper_data_dir: P
     r = CliRunner().invoke(cli, args)
     assert r.exit_code == 0, r.output
     assert (tmp_path / "fig.csv").read_bytes() == (repo / "docs" / "driving-error.csv").read_bytes()
+
+
+def test_a_file_name_that_is_not_utf8_is_drawn_with_a_replacement_character() -> None:
+    import os
+
+    from odmd_bench.cli.plot import _labels
+
+    name = os.fsdecode(b"bad\xff$x.csv")  # as Python gets it from the command line
+    assert _labels((Path(name),), ()) == ["bad\ufffd\\$x.csv"]

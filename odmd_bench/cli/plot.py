@@ -22,13 +22,15 @@ _IGNORED_SETS = "ignored rows of sets not asked for"
 def _labels(preds: tuple[Path, ...], given: tuple[str, ...]) -> list[str]:
     """``--label`` values, or each file's name (its path as given where names repeat).
 
-    A ``$`` in a file name is escaped, so that a name is never read as math text.
+    A ``$`` in a file name is escaped, so that a name is never read as math text, and
+    bytes of a name that are not UTF-8 are drawn as U+FFFD (a font has no glyph for them).
     """
     if given:
         return list(given)
     names = ["stdin" if str(p) == "-" else p.name for p in preds]
     chosen = [n if names.count(n) == 1 else str(p) for n, p in zip(names, preds, strict=True)]
-    return [n.replace("$", r"\$") for n in chosen]
+    drawable = [n.encode("utf-8", "surrogateescape").decode("utf-8", "replace") for n in chosen]
+    return [n.replace("$", r"\$") for n in drawable]
 
 
 def _check_usage(
