@@ -666,3 +666,64 @@ def test_storage_errors_give_the_fix_of_the_kind_of_file() -> None:
     busy = OSError(errno.EAGAIN, "Resource temporarily unavailable")
     text = str(storage_error(busy, "/d/odmd-v1/test.h5", "read", "run `odmd-bench generate` to rebuild it"))
     assert "another process has it open for writing" in text and "rebuild" not in text
+
+
+def _damage(data: dict, how: str) -> None:
+    test = data["splits"]["test"] if "splits" in data else None
+    if how == "pin without sha256":
+        del test["normal"]["sha256"]
+    elif how == "split as a list":
+        data["splits"]["test"] = []
+    elif how == "n as text":
+        test["normal"]["n"] = "3000"
+    elif how == "unknown kind":
+        test["camera"]["kind"] = "magic"
+    elif how == "files as a list":
+        data["files"] = []
+
+
+@pytest.mark.parametrize(
+    ("name", "how", "problem"),
+    [
+        ("odmd-v1", "pin without sha256", "test normal: sha256 must be text"),
+        ("odmd-v1", "split as a list", "splits['test'] must map each set to its pin"),
+        ("odmd-v1", "n as text", "test normal: n must be an integer"),
+        ("odmd-v1", "unknown kind", "test camera: kind must be one of generated, import, file"),
+        ("odmd-original", "files as a list", "files must map each file of the release to its pin"),
+    ],
+)
+def test_a_damaged_pinned_manifest_is_named_not_a_traceback(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, name: str, how: str, problem: str
+) -> None:
+    """A damaged installation: every command that reads the manifest says so, exit 2."""
+    import json
+
+    from click.testing import CliRunner
+
+    from odmd_bench.cli.main import cli
+    from odmd_bench.data import manifests
+
+    splits = tmp_path / "splits"
+    shutil.copytree(manifests.splits_dir(), splits)
+    data = json.loads((splits / f"{name}.json").read_text())
+    _damage(data, how)
+    (splits / f"{name}.json").write_text(json.dumps(data))
+    monkeypatch.setattr(manifests, "splits_dir", lambda: splits)
+    manifests.read_manifest.cache_clear()
+    try:
+        with pytest.raises(DataError) as info:
+            manifests.read_manifest(name)
+        assert info.value.message == f"pinned manifest {splits / name}.json is damaged; reinstall odmd-bench"
+        assert problem in info.value.problems
+        preds = tmp_path / "p.csv"
+        preds.write_text("split,set,index,depth\ntest,normal,0,1.0\n")
+        (tmp_path / "test_normal.pk").write_bytes(b"not a pickle")
+        args = (
+            ["import", str(tmp_path / "test_normal.pk")]
+            if name == "odmd-original"
+            else ["evaluate", str(preds)]
+        )
+        r = CliRunner().invoke(cli, args)
+        assert r.exit_code == 2 and "is damaged; reinstall odmd-bench" in r.output, r.output
+    finally:
+        manifests.read_manifest.cache_clear()

@@ -68,6 +68,19 @@ _FIXES = {
 _IN_USE = (errno_codes.EAGAIN, errno_codes.EWOULDBLOCK)
 
 
+def _in_data_folder(path: Path) -> bool:
+    """Whether ``path`` is a data file (``.h5``) or in the default data folder."""
+    from odmd_bench.data.registry import default_data_dir
+
+    if path.suffix == ".h5":
+        return True
+    try:
+        folder = default_data_dir().absolute()
+        return path.absolute() == folder or folder in path.absolute().parents
+    except (OSError, ValueError):
+        return False
+
+
 def storage_error(
     e: BaseException, path: str | os.PathLike[str], action: str, fix: str | None = None
 ) -> StorageError:
@@ -83,7 +96,7 @@ def storage_error(
             f"another process has it open for writing ({cause})",
             "wait until that process has finished, then run the command again",
         )
-    elsewhere = _DATA_ELSEWHERE if Path(path).suffix == ".h5" else _ELSEWHERE
+    elsewhere = _DATA_ELSEWHERE if _in_data_folder(Path(path)) else _ELSEWHERE
     hint = fix or _FIXES.get(
         code or -1, "check the path and its permissions, then run the command again"
     ).replace("PATH", str(path)).replace("ELSEWHERE", elsewhere)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 from functools import cache
 from importlib import resources
 from pathlib import Path
@@ -29,30 +30,106 @@ def splits_dir() -> Path:
         ) from None
 
 
+_HEX64 = re.compile(r"[0-9a-f]{64}")
+
+#: Fields of a set's pin, by kind, beside ``n``, ``sha256`` and ``meta_sha256``.
+_PIN_FIELDS: dict[str, dict[str, type]] = {
+    "generated": {"generator_version": int, "preset": str, "perturbation": str, "seed": int},
+    "import": {"source": str, "source_sha256": str},
+    "file": {"file": str, "source_sha256": str},
+}
+
+
+def _field_problems(entry: dict[str, Any], fields: dict[str, type], where: str) -> list[str]:
+    problems = []
+    for key, kind in fields.items():
+        value = entry.get(key)
+        if not isinstance(value, kind) or isinstance(value, bool):
+            problems.append(f"{where}: {key} must be {'an integer' if kind is int else 'text'}")
+        elif key.endswith("sha256") and not _HEX64.fullmatch(str(value)):
+            problems.append(f"{where}: {key} must be 64 lowercase hex digits")
+    return problems
+
+
+def manifest_problems(name: str, data: Any) -> list[str]:
+    """What is wrong with the layout of manifest ``name`` (empty when nothing is).
+
+    A benchmark's manifest pins each set of each split (``n``, ``sha256``,
+    ``meta_sha256``, and by ``kind`` how it is made); ``odmd-original`` pins each file of
+    the release by ``sha256``.
+    """
+    if not isinstance(data, dict):
+        return ["the manifest must be a JSON object"]
+    if name == "odmd-original":
+        files = data.get("files")
+        if not isinstance(files, dict) or not files:
+            return ["files must map each file of the release to its pin"]
+        problems = []
+        for path, entry in files.items():
+            if not isinstance(entry, dict):
+                problems.append(f"files[{path!r}] must be an object")
+                continue
+            target = {"benchmark": str, "split": str, "set": str} if "benchmark" in entry else {"kind": str}
+            problems += _field_problems(entry, {"sha256": str, **target}, f"files[{path!r}]")
+        return problems
+    splits = data.get("splits")
+    if not isinstance(splits, dict) or not splits:
+        return ["splits must map each split to its sets"]
+    problems = []
+    for split, sets in splits.items():
+        if not isinstance(sets, dict) or not sets:
+            problems.append(f"splits[{split!r}] must map each set to its pin")
+            continue
+        for set_name, entry in sets.items():
+            where = f"{split} {set_name}"
+            if not isinstance(entry, dict):
+                problems.append(f"{where}: the pin must be an object")
+                continue
+            kind = entry.get("kind")
+            if kind not in _PIN_FIELDS:
+                problems.append(f"{where}: kind must be one of {', '.join(_PIN_FIELDS)}")
+                continue
+            problems += _field_problems(entry, {"n": int, "sha256": str, "meta_sha256": str}, where)
+            problems += _field_problems(entry, _PIN_FIELDS[kind], where)
+            if isinstance(entry.get("n"), int) and entry["n"] < 1:
+                problems.append(f"{where}: n must be at least 1")
+    return problems
+
+
 @cache
 def read_manifest(name: str) -> dict[str, Any]:
-    """The JSON manifest ``splits/<name>.json``."""
+    """The JSON manifest ``splits/<name>.json``, its layout checked (:func:`manifest_problems`).
+
+    Raises:
+        DataError: the file is missing, not JSON, or not laid out as a manifest (a
+            damaged installation: the fix is to reinstall).
+    """
     path = splits_dir() / f"{name}.json"
     try:
         data: dict[str, Any] = json.loads(path.read_text(encoding="utf-8"))
     except FileNotFoundError:
-        raise DataError(f"no pinned manifest {path}") from None
-    except json.JSONDecodeError as e:
-        raise DataError(f"pinned manifest {path} is not valid JSON: {e}") from None
+        raise DataError(f"no pinned manifest {path}; reinstall odmd-bench") from None
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
+        raise DataError(f"pinned manifest {path} cannot be read ({e}); reinstall odmd-bench") from None
+    problems = manifest_problems(name, data)
+    if problems:
+        raise DataError(f"pinned manifest {path} is damaged; reinstall odmd-bench", problems)
     return data
 
 
 def pinned_sizes(benchmark: str, split: str) -> dict[str, int]:
     """``{set: number of examples}`` of one split as the benchmark's manifest pins them.
 
-    Empty for a benchmark or split without a manifest entry; a set without a pinned
-    ``n`` is left out.
+    Empty for a split without a manifest entry.
+
+    Raises:
+        DataError: the manifest is missing or damaged.
     """
     try:
         entries = read_manifest(benchmark)["splits"][split]
-    except (DataError, KeyError, TypeError):
+    except KeyError:
         return {}
-    return {s: int(e["n"]) for s, e in entries.items() if isinstance(e, dict) and isinstance(e.get("n"), int)}
+    return {s: int(e["n"]) for s, e in entries.items()}
 
 
 def known_originals() -> dict[str, dict[str, Any]]:
