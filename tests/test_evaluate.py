@@ -297,6 +297,12 @@ HEADER = "split,set,index,depth\n"
         ("split;set;index;depth\ntest;normal;0;1\n", "semicolons"),
         ("split,set,index,depth,depth\ntest,normal,0,1,1\n", "column 'depth' appears more than once"),
         ('split,set,index,depth\ntest,"normal,0,1\n', "not valid CSV"),
+        # a quote never closed, early in a long file: named where it opens, not where the
+        # CSV reader's field limit stops it thousands of lines later
+        (
+            HEADER + "test,normal,0,1\ntest,normal,1,\"1\n" + "test,normal,2,1\n" * 20000,
+            "not valid CSV: a quote opened after line 2 is never closed",
+        ),
     ],
 )
 def test_unreadable_files(data: Path, tmp_path: Path, text: str | bytes, expected: str) -> None:

@@ -75,7 +75,8 @@ def records(text: str, title: str) -> Iterator[tuple[int, list[str]]]:
                 last = reader.line_num
                 yield last, cells
     except csv.Error as e:
-        if "unexpected end of data" in str(e):
+        if "unexpected end of data" in str(e) or "field larger than field limit" in str(e):
+            # A quote never closed swallows the rest of the file (or the limit's worth).
             raise ValidationError(
                 title, [f"not valid CSV: a quote opened after line {last} is never closed"]
             ) from None
