@@ -313,21 +313,32 @@ def atomic_path(path: str | os.PathLike[str], *, into_devices: bool = True) -> I
 @contextlib.contextmanager
 def _through_temp(device: Path) -> Iterator[Path]:
     """A temporary file whose content is copied into ``device`` (not a regular file) on success."""
+    tmp = _temp_elsewhere()
+    try:
+        yield tmp
+        _copy_into(tmp, device)
+    finally:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+
+
+def _temp_elsewhere() -> Path:
+    """An empty temporary file in the system's temporary folder (for what goes to a device)."""
     try:
         fd, tmp = tempfile.mkstemp(suffix=".tmp")
     except OSError as e:
         raise storage_error(e, tempfile.gettempdir(), "write into") from None
     os.close(fd)
+    return Path(tmp)
+
+
+def _copy_into(source: Path, device: Path) -> None:
+    """Write ``source``'s bytes into ``device`` (a pipe, a terminal, /dev/null...)."""
     try:
-        yield Path(tmp)
-        try:
-            with open(tmp, "rb") as src, open(device, "wb") as dst:
-                shutil.copyfileobj(src, dst)
-        except OSError as e:
-            raise storage_error(e, device, "write") from None
-    finally:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
+        with open(source, "rb") as src, open(device, "wb") as dst:
+            shutil.copyfileobj(src, dst)
+    except OSError as e:
+        raise storage_error(e, device, "write") from None
 
 
 @contextlib.contextmanager
@@ -415,13 +426,10 @@ def atomic_paths(paths: Sequence[str | os.PathLike[str]]) -> Iterator[list[Path]
             if replace:
                 clean_stale_temps(target)
                 fd, tmp = _temp_beside(target)
+                os.close(fd)
+                temps.append(Path(tmp))
             else:
-                try:
-                    fd, tmp = tempfile.mkstemp(suffix=".tmp")
-                except OSError as e:
-                    raise storage_error(e, tempfile.gettempdir(), "write into") from None
-            os.close(fd)
-            temps.append(Path(tmp))
+                temps.append(_temp_elsewhere())
         try:
             yield list(temps)
         except OSError as e:
@@ -431,11 +439,7 @@ def atomic_paths(paths: Sequence[str | os.PathLike[str]]) -> Iterator[list[Path]
         _commit([(tmp, target) for tmp, (target, replace) in zip(temps, plans, strict=True) if replace])
         for through, (device, replace) in zip(temps, plans, strict=True):
             if not replace:
-                try:
-                    with open(through, "rb") as src, open(device, "wb") as dst:
-                        shutil.copyfileobj(src, dst)
-                except OSError as e:
-                    raise storage_error(e, device, "write") from None
+                _copy_into(through, device)
     finally:
         for left in temps:
             with contextlib.suppress(OSError):
