@@ -300,7 +300,7 @@ HEADER = "split,set,index,depth\n"
         # a quote never closed, early in a long file: named where it opens, not where the
         # CSV reader's field limit stops it thousands of lines later
         (
-            HEADER + "test,normal,0,1\ntest,normal,1,\"1\n" + "test,normal,2,1\n" * 20000,
+            HEADER + 'test,normal,0,1\ntest,normal,1,"1\n' + "test,normal,2,1\n" * 20000,
             "not valid CSV: a quote opened after line 2 is never closed",
         ),
     ],
