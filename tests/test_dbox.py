@@ -716,7 +716,11 @@ def test_p_z_per_set_misses_the_papers_robot_and_driving_means_in_the_tail_only(
         depth = dbox.predict(ex, config="p-z", selection="per-set")
         err = odmd_bench.percent_error(ex.depth, depth)
         median, top, over = stated[name]
-        assert abs(float(np.median(err)) - median) < 0.0051 and abs(float(err.max()) - top) < 0.0051, name
+        # The stated numbers are the shipped predictions'; predicting again here agrees to
+        # float32 rounding, which depends on the thread count (Driving's max: 484.5153 with
+        # one thread, 484.5144 with two, 484.52 shipped): the max gets a relative tolerance.
+        assert abs(float(np.median(err)) - median) < 0.0051, name
+        assert abs(float(err.max()) - top) < 1e-4 * top, name
         assert int(np.count_nonzero(err > 100)) == over and np.all(depth[err > 100] > ex.depth[err > 100])
         assert float(np.median(err)) < paper_median[name], name
         if name == "robot":  # 33 of the 43 lie below the training stream's 5th percentile of Z_n / L
