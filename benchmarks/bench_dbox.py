@@ -16,7 +16,8 @@ Each case runs with 1 torch thread and with 2 (this machine's cores):
 - ``impl="onednn"`` is ``DBox.forward`` (and its hand-written backward) with every
   product on oneDNN's kernel (``ODMD_BENCH_ONEDNN=1``); ``impl="plain"`` is the same
   code on plain torch products (``ODMD_BENCH_ONEDNN=0``, as on a torch build without
-  oneDNN); ``impl="auto"`` is what ships: the kernel the per-process probe picks
+  oneDNN); ``impl="auto"`` is what ships: for training, the kernel the per-process
+  probe picks; for inference, plain products
   (:func:`odmd_bench_baselines.dbox.model.use_onednn`; ``extra_info["auto_picks"]``
   says which); ``impl="reference"`` is
   :func:`odmd_bench_baselines.dbox.model.reference_forward`, the original release's forward

@@ -126,8 +126,9 @@ class DBox(nn.Module):
 # PyTorch's own compiler emits; it applies the gate sigmoid inside the product) or on
 # plain torch products (MKL's SGEMM behind ``torch.addmm``). Which is faster depends on
 # the CPU: oneDNN was faster on one AMD EPYC, slower on another and on an Intel Xeon
-# (AVX-512, AMX): so :func:`use_onednn` decides once per process by timing both
-# (``ODMD_BENCH_ONEDNN`` overrides). Elsewhere (float64, CUDA, builds without oneDNN)
+# (AVX-512, AMX): so :func:`use_onednn` decides once per process by timing both for
+# training, and keeps plain products for inference, whose output must not depend on a
+# timing (``ODMD_BENCH_ONEDNN`` overrides). Elsewhere (float64, CUDA, builds without oneDNN)
 # the code runs on plain torch products.
 #
 # The LSTM runs feature-major, one contiguous (features, B) block per observation:
@@ -148,8 +149,9 @@ _CT = _K  # rows of c_t
 _Q = _CT + HIDDEN  # 392
 
 
-#: Values of ``ODMD_BENCH_ONEDNN``: ``auto`` (default: a timed probe decides), ``1`` (always
-#: oneDNN where available), ``0`` (plain torch products).
+#: Values of ``ODMD_BENCH_ONEDNN``: ``auto`` (default: plain products for inference, a
+#: timed probe decides for training), ``1`` (always oneDNN where available), ``0`` (plain
+#: torch products).
 KERNEL_SETTINGS = ("auto", "1", "0")
 _forced: str | None = None  # set by kernels()
 
@@ -172,11 +174,12 @@ def use_onednn(train: bool) -> bool:
     """Whether float32 CPU products run on oneDNN (else plain torch products).
 
     The rule: ``ODMD_BENCH_ONEDNN=0`` never, ``1`` always (where oneDNN works); unset or
-    ``auto``: once per process, thread count and kind of pass (``train``: forward and
-    backward of a batch of 512; else a forward of 1,000 examples without gradients), a
-    probe times both kernels (interleaved, best of three, about 0.1-0.3 s) and keeps
-    oneDNN only if it is faster. Both give the same numbers to float32 rounding; a run
-    that must repeat bit for bit should fix the setting.
+    ``auto``: never for inference (``train`` false), so that predictions, which are
+    results, are the same bit for bit in every run and at every thread count; for
+    training, once per process and thread count, a probe times both kernels on a forward
+    and backward of a batch of 512 (interleaved, best of three, about 0.1-0.3 s) and
+    keeps oneDNN only if it is faster (the record of a run says which ran). Both give the
+    same numbers to float32 rounding.
 
     Raises:
         UsageError: ``ODMD_BENCH_ONEDNN`` has another value.
@@ -186,7 +189,9 @@ def use_onednn(train: bool) -> bool:
         raise UsageError(f"ODMD_BENCH_ONEDNN={setting!r}: expected one of {', '.join(KERNEL_SETTINGS)}")
     if setting == "0" or not onednn_available():
         return False
-    return setting == "1" or _probe(train, torch.get_num_threads())
+    if setting == "1":
+        return True
+    return train and _probe(train, torch.get_num_threads())
 
 
 @contextlib.contextmanager
