@@ -484,6 +484,8 @@ def test_out_of_range_options_exit_2(data: Path, tmp_path: Path, args: list[str]
     "command", [["evaluate", "-"], ["compare", "P", "-"], ["plot", "-", "--set", "robot"]]
 )
 def test_a_closed_stdin_is_a_usage_error(data: Path, tmp_path: Path, command: list[str]) -> None:
+    if "plot" in command:
+        pytest.importorskip("matplotlib")  # the [plot] extra
     p = preds(tmp_path, benchmark="odmd-paper")
     args = [str(p) if a == "P" else a for a in command] + (
         ["-o", str(tmp_path / "f.png")] if "plot" in command else []

@@ -267,6 +267,7 @@ def test_plot_without_matplotlib_names_the_extra(
 
 def test_the_readme_figure_numbers_are_what_the_command_writes(paper_data_dir: Path, tmp_path: Path) -> None:
     """docs/driving-error.csv is reproduced by the README's command on the committed entries."""
+    pytest.importorskip("matplotlib")  # the [plot] extra
     repo = Path(__file__).resolve().parents[1]
     entries = repo / "leaderboard" / "entries"
     args = [

@@ -36,6 +36,24 @@ OPTIONAL_COLUMNS: tuple[str, ...] = ("depth",)
 
 _BOX = ("x1", "y1", "x2", "y2")
 _CAM = ("cam_x", "cam_y", "cam_z")
+
+
+def _round_trip() -> dict[str, str]:
+    """``read_csv`` options that parse every decimal to the nearest float64.
+
+    pandas before 3.1 reads with a faster parser that can miss by one unit in the last
+    place (17-digit decimals), unless asked for ``float_precision="round_trip"``; pandas
+    3.1 always rounds right and deprecates the option. Without it, ``predict`` would give
+    depths differing in the last digits from one pandas to another.
+    """
+    from importlib.metadata import version
+
+    major, minor = (int(x) for x in re.findall(r"\d+", version("pandas"))[:2])
+    return {"float_precision": "round_trip"} if (major, minor) < (3, 1) else {}
+
+
+_ROUND_TRIP = _round_trip()
+
 _NUMERIC = ("observation", *_BOX, *_CAM)
 _FLOAT = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
 _NONFINITE = re.compile(r"[+-]?(?:nan|inf|infinity)", re.IGNORECASE)
@@ -122,6 +140,7 @@ def fast_rows(data: bytes, header: list[str], cols: dict[str, int]) -> Rows | No
             encoding="utf-8",
             engine="c",
             low_memory=False,
+            **_ROUND_TRIP,
         )
     except (ValueError, pd.errors.ParserError):  # a cell that is no number, a long line
         return None
