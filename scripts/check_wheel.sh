@@ -8,7 +8,8 @@
 #      folder of its own, run generate, baseline box-ls and dbox, evaluate and import;
 #   4. install it into a second venv where torch and matplotlib cannot be imported: generate,
 #      box-ls, evaluate, compare, import and the leaderboard check run, and `baseline dbox`,
-#      `train-dbox` and `plot` exit 2 naming the extra to install.
+#      `train-dbox` and `plot` exit 2 naming the extra to install;
+#   5. run the whole test suite on the first venv's installed wheel (not the checkout).
 # The venvs reuse the dependencies already installed in the running Python's environment
 # (a .pth file pointing at its site-packages) and install the wheel with --no-deps: nothing
 # is downloaded. The original release ($ODMD_ORIGINAL, default ../shared/odmd-original)
@@ -197,4 +198,18 @@ needs_extra dbox "baseline dbox" baseline dbox -o dbox-base.csv
 [ ! -e dbox-base.csv ] || fail "[base] baseline dbox wrote a file"
 needs_extra dbox "train-dbox" train-dbox --steps 1 --out train-base
 needs_extra plot "plot" plot box.csv --set normal -o fig.png
+
+# --- 4. the test suite on the installed wheel ------------------------------------------------
+# From the repository (the tests read its leaderboard, docs and ../shared), with -P so that
+# the checkout's odmd_bench/ is not put before the installed one: what users get is tested.
+echo "installed wheel, full: the test suite"
+cd "$repo"
+where=$("$work/full/bin/python" -P -c 'import odmd_bench, odmd_bench_baselines; print(odmd_bench.__file__, odmd_bench_baselines.__file__)')
+case "$where" in
+    "$work/full/"*" $work/full/"*) ;;
+    *) fail "from the repository, the venv imports odmd-bench from elsewhere: $where" ;;
+esac
+"$work/full/bin/python" -P -m pytest -q -p no:cacheprovider >"$work/pytest.log" 2>&1 \
+    || { tail -40 "$work/pytest.log" >&2; fail "the test suite on the installed wheel"; }
+tail -1 "$work/pytest.log" | sed 's/^/  /'
 echo "check_wheel: OK ($((SECONDS - start)) s)"

@@ -84,9 +84,8 @@ def frame(source: str | os.PathLike[str] | Built | None = None, *, reported: boo
         ModuleNotFoundError: When pandas is not installed.
 
     Example:
-        >>> from pathlib import Path
-        >>> import odmd_bench
-        >>> df = frame(Path(odmd_bench.__file__).parents[1] / "leaderboard")  # a source checkout
+        >>> from odmd_bench.leaderboard import find_root
+        >>> df = frame(find_root())  # the leaderboard folder of the checkout you are in
         >>> df.columns[:4].tolist()
         ['benchmark', 'split', 'position', 'group']
         >>> bool((df.groupby(["benchmark", "split"]).position.min() == 1).all())  # best first
