@@ -250,18 +250,18 @@ def write_target(path: str | os.PathLike[str], *, into_devices: bool = True) -> 
         StorageError: the path is a loop of symbolic links, or cannot be looked at.
     """
     given = Path(path)
+    led_to = Path(os.path.realpath(given)) if given.is_symlink() else given  # what replacing changes
     try:
         mode = os.stat(given).st_mode  # through any links
     except FileNotFoundError:  # missing, or a link to nothing: made where the link leads
-        return (Path(os.path.realpath(given)) if given.is_symlink() else given), True
+        return led_to, True
     except OSError as e:
         if e.errno in (errno_codes.ENOTDIR, errno_codes.EACCES):
             return given, True  # the write says why, with the folder's fix
         raise storage_error(e, path, "write") from None
-    replace = stat.S_ISREG(mode) or stat.S_ISDIR(mode) or not into_devices
-    if not replace:
-        return given, False
-    return (Path(os.path.realpath(given)) if given.is_symlink() else given), True
+    if stat.S_ISREG(mode) or stat.S_ISDIR(mode) or not into_devices:
+        return led_to, True
+    return given, False
 
 
 #: Errors of a write that ran out of room (or of a failing disk): named with the file.

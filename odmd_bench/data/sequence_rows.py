@@ -10,6 +10,7 @@ problem goes to one :class:`~odmd_bench.evaluation.problems.Problems`, located b
 from __future__ import annotations
 
 import csv
+import functools
 import io
 import re
 from dataclasses import dataclass
@@ -38,7 +39,8 @@ _BOX = ("x1", "y1", "x2", "y2")
 _CAM = ("cam_x", "cam_y", "cam_z")
 
 
-def _round_trip() -> dict[str, str]:
+@functools.cache
+def _round_trip(pandas_version: str) -> tuple[tuple[str, str], ...]:
     """``read_csv`` options that parse every decimal to the nearest float64.
 
     pandas before 3.1 reads with a faster parser that can miss by one unit in the last
@@ -46,13 +48,9 @@ def _round_trip() -> dict[str, str]:
     3.1 always rounds right and deprecates the option. Without it, ``predict`` would give
     depths differing in the last digits from one pandas to another.
     """
-    from importlib.metadata import version
+    major, minor = (int(x) for x in re.findall(r"\d+", pandas_version)[:2])
+    return (("float_precision", "round_trip"),) if (major, minor) < (3, 1) else ()
 
-    major, minor = (int(x) for x in re.findall(r"\d+", version("pandas"))[:2])
-    return {"float_precision": "round_trip"} if (major, minor) < (3, 1) else {}
-
-
-_ROUND_TRIP = _round_trip()
 
 _NUMERIC = ("observation", *_BOX, *_CAM)
 _FLOAT = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
@@ -140,7 +138,7 @@ def fast_rows(data: bytes, header: list[str], cols: dict[str, int]) -> Rows | No
             encoding="utf-8",
             engine="c",
             low_memory=False,
-            **_ROUND_TRIP,
+            **dict(_round_trip(pd.__version__)),
         )
     except (ValueError, pd.errors.ParserError):  # a cell that is no number, a long line
         return None
