@@ -8,7 +8,9 @@ benchmark, so no manifest pins them); the last test scores Box_LS on the real im
 from __future__ import annotations
 
 import contextlib
+import csv
 import hashlib
+import io
 import os
 import string
 from pathlib import Path
@@ -25,6 +27,7 @@ from odmd_bench.data.registry import set_file
 from odmd_bench.evaluation.coverage import check_coverage
 from odmd_bench.evaluation.parse import parse_predictions
 from odmd_bench.evaluation.predictions import write_predictions
+from odmd_bench.evaluation.rows import records
 from odmd_bench.evaluation.scoring import SHOWN, EvaluationResult, evaluate
 
 BENCH = "odmd-paper"
@@ -500,6 +503,57 @@ def near_valid_csv(draw: st.DrawFn) -> bytes:
 @given(near_valid_csv())
 def test_near_valid_csvs_raise_only_package_errors(tmp_path: Path, data: bytes) -> None:
     _check_never_crashes(tmp_path, data)
+
+
+def _reference_records(text: str) -> list[tuple[int, list[str]]] | str:
+    """What ``records`` must give: the csv module read line by line, blank records dropped."""
+    reader = csv.reader(io.StringIO(text, newline=""), strict=True)
+    out = []
+    try:
+        for record in reader:
+            cells = [c.strip() for c in record]
+            if any(cells):
+                out.append((reader.line_num, cells))
+    except csv.Error:
+        return "error"
+    return out
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    st.lists(
+        st.sampled_from(["a", "b,c", " ", ",", "\t", "\n", "\r", "\r\n", "\n\n", " ,\t\n", ",a"]),
+        max_size=30,
+    )
+)
+def test_blank_runs_are_skipped_with_the_line_numbers_of_a_plain_reader(parts: list[str]) -> None:
+    # records() passes over runs of blank lines in one match (a file of millions of them
+    # is refused in a second); records and line numbers are the csv module's own.
+    text = "".join(parts)
+    assert list(records(text, "t")) == _reference_records(text)
+
+
+@pytest.mark.parametrize(
+    ("text", "expected"),
+    [
+        ('a,b\n"c,d\n\n\n', "a quote opened after line 1 is never closed"),
+        ('a,b\n\n\r\n , \n"c"x,d\n', "line 5: not valid CSV"),
+        ("a\n" + "\n" * 100_000 + '"x', "a quote opened after line 1 is never closed"),
+    ],
+)
+def test_csv_errors_after_blank_runs_name_the_right_line(text: str, expected: str) -> None:
+    with pytest.raises(ValidationError, match=expected):
+        list(records(text, "t"))
+
+
+def test_millions_of_blank_lines_are_refused_as_a_file_without_rows(data: Path, tmp_path: Path) -> None:
+    p = tmp_path / "blank.csv"
+    p.write_text(HEADER + " ,\t,\n" * 2_000_000 + "\r\n" * 2_000_000)
+    with pytest.raises(ValidationError, match="the file has a header but no rows"):
+        evaluate(p, benchmark=BENCH)
+    p.write_text(HEADER + "\n" * 2_000_000 + "test,normal,0,abc\n" + "\n".join(rows()[1:]))
+    with pytest.raises(ValidationError, match="line 2000002 \\('abc'\\)"):  # counted past the blank run
+        evaluate(p, benchmark=BENCH)
 
 
 # --- the paper's numbers ---------------------------------------------------------

@@ -144,6 +144,21 @@ def test_the_careful_reader_gives_the_same_numbers_as_the_fast_one() -> None:
             np.testing.assert_array_equal(getattr(slow, name), getattr(fast, name))
 
 
+@pytest.mark.parametrize("quoted", [False, True])
+def test_lines_of_separators_only_are_skipped_by_both_readers(quoted: bool) -> None:
+    # The fast reader's pandas would read ",,,,,,,," as a row of empty cells; the careful
+    # reader skips it like a blank line (as evaluate does). The same file must read the same.
+    text = sequences.format_sequences(_examples(4), names=[f"s{i}" for i in range(4)])
+    header, *rows = text.splitlines()
+    rows[0] = f'"{rows[0].split(",", 1)[0]}",{rows[0].split(",", 1)[1]}' if quoted else rows[0]
+    blank = "," * (len(header.split(",")) - 1)
+    variant = "\n".join([header, rows[0], blank, blank, *rows[1:], blank]) + "\n"
+    assert len(blank.split(",")) == len(header.split(","))
+    got, want = _read(variant), _read(text)
+    assert got.names == want.names
+    np.testing.assert_array_equal(got.examples().boxes, want.examples().boxes)
+
+
 def test_both_readers_parse_decimals_of_any_length_alike() -> None:
     rng = np.random.default_rng(7)
     rows = []

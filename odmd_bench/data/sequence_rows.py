@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from odmd_bench.evaluation.problems import SHOWN, Problems, show
+from odmd_bench.evaluation.rows import CsvSyntaxError, csv_records
 
 #: Columns every sequences file must have, in the order files are written.
 REQUIRED_COLUMNS: tuple[str, ...] = (
@@ -148,6 +149,11 @@ def fast_rows(data: bytes, header: list[str], cols: dict[str, int]) -> Rows | No
     seq = df[cols["sequence"]].to_numpy(dtype=object)
     codes, uniques = pd.factorize(seq, sort=False, use_na_sentinel=False)
     stripped = np.array(["" if u is None or u != u else str(u).strip() for u in uniques], dtype=object)
+    if (stripped == "").any():
+        # A row without a sequence name: a line of separators only, which the careful
+        # reader skips like a blank line (pandas reads it as empty cells), or a problem
+        # that reader locates.
+        return None
     numbers = np.empty((m, len(_NUMERIC)))
     for j, c in enumerate(_NUMERIC):
         numbers[:, j] = df[cols[c]].to_numpy(dtype=np.float64)
@@ -157,20 +163,16 @@ def fast_rows(data: bytes, header: list[str], cols: dict[str, int]) -> Rows | No
 
 def careful_rows(text: str, header: list[str], cols: dict[str, int], problems: Problems) -> Rows:
     """Every row read with :mod:`csv` and every cell checked, each problem located."""
-    reader = csv.reader(io.StringIO(text, newline=""), strict=True)
     lines: list[int] = []
     names: list[str] = []
     numbers: list[list[float]] = []
     depths: list[float] = []
     width = len(header)
     has_depth = "depth" in cols
+    stream = csv_records(text)
     try:
-        next(reader)
-        for record in reader:
-            cells = [c.strip() for c in record]
-            if not any(cells):
-                continue
-            line = reader.line_num
+        next(stream, None)  # the header: line 1, not blank (header_columns read it)
+        for line, cells in stream:
             if len(cells) != width:
                 problems.add(
                     f"wrong number of fields (every row must have {width}, like the header)",
@@ -185,8 +187,8 @@ def careful_rows(text: str, header: list[str], cols: dict[str, int], problems: P
             numbers.append(row[: len(_NUMERIC)])
             if has_depth:
                 depths.append(row[-1])
-    except csv.Error as e:
-        problems.add(f"line {max(reader.line_num, 1)}: not valid CSV ({e})")
+    except CsvSyntaxError as e:
+        problems.add(str(e))
     arr = np.array(numbers, dtype=np.float64).reshape(-1, len(_NUMERIC))
     return Rows(
         np.array(lines, dtype=np.int64),
