@@ -46,6 +46,8 @@ class ParsedPredictions:
         nonpositive: ``{set: ((line, "line L (set i: text)"), ...)}`` the first few
             zero or negative depths of each set.
         problems: every problem found; empty when parsed with ``strict=True``.
+        benchmark_column: whether the file has a ``benchmark`` column (else its benchmark
+            came from the argument or the default).
     """
 
     name: str
@@ -61,6 +63,7 @@ class ParsedPredictions:
     lines: np.ndarray
     nonpositive: dict[str, tuple[tuple[int, str], ...]] = field(default_factory=dict, repr=False)
     problems: Problems = field(default_factory=Problems, repr=False, compare=False)
+    benchmark_column: bool = False
 
 
 def parse_predictions(
@@ -172,6 +175,7 @@ def _finish(
         lines=lines[keep],
         nonpositive={names[c]: tuple(v) for c, v in rows.nonpositive.items()},
         problems=problems,
+        benchmark_column="benchmark" in rows.cols,
     )
 
 

@@ -17,6 +17,7 @@ A file is refused as a whole, naming every problem of stages 1 and 3 in one
 
 from __future__ import annotations
 
+import dataclasses
 import os
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -35,6 +36,7 @@ from odmd_bench.evaluation.parse import parse_predictions
 from odmd_bench.evaluation.problems import SHOWN
 from odmd_bench.evaluation.result import EvaluationResult, Predictions
 from odmd_bench.evaluation.source import Source
+from odmd_bench.evaluation.twin import twin_fit
 
 __all__ = [
     "OPTIONAL_COLUMNS",
@@ -171,4 +173,21 @@ def evaluate(
     scope = check_sets(sets, get_benchmark(parsed.benchmark)) if sets is not None else None
     examples = load_split(parsed.split, parsed.benchmark, data_dir, list(scope) if scope else None)
     predictions = check_coverage(parsed, {s: len(ex) for s, ex in examples.items()}, sets=sets)
-    return score(predictions, examples)
+    result = score(predictions, examples)
+    if not parsed.benchmark_column:
+        fit = twin_fit(result.benchmark, result.split, predictions.depths, examples, data_dir)
+        if fit is not None and fit.far_better:
+            said = (
+                f"as asked (--benchmark {benchmark})"
+                if benchmark is not None
+                else "the default, as the file has no benchmark column"
+            )
+            result = dataclasses.replace(
+                result,
+                warnings=(
+                    *result.warnings,
+                    f"scored against {result.benchmark}, {said}, but the depths {fit.describe()}: "
+                    f"if they were made for {fit.twin}, score them with --benchmark {fit.twin}",
+                ),
+            )
+    return result

@@ -144,9 +144,39 @@ def add_entry(
                     for key in copied
                 ],
             )
+        misfit = _fits_the_twin(data, spec, result, examples, data_dir)
+        if misfit:
+            raise ValidationError(title, [misfit])
         folder.mkdir(parents=True, exist_ok=True)
         names = ("predictions.csv.gz", "entry.yaml")
         with atomic_paths([folder / f for f in names]) as temps:  # both replaced, or neither
             for f, part in zip(names, temps, strict=True):
                 part.write_bytes((staged / f).read_bytes())
     return read_entry(folder, root.parent)
+
+
+def _fits_the_twin(
+    data: bytes,
+    spec: BoardSpec,
+    result: EvaluationResult,
+    examples: dict[str, Examples],
+    data_dir: str | os.PathLike[str] | None,
+) -> str | None:
+    """Why predictions without a benchmark column look made for the twin benchmark, if they do.
+
+    ``odmd-v1`` and ``odmd-paper`` have the same sets and sizes, so ``--benchmark`` alone
+    decides the board of such a file; the twin is compared when it is in the data folder.
+    """
+    from odmd_bench.evaluation.parse import parse_predictions
+    from odmd_bench.evaluation.twin import twin_fit
+
+    if parse_predictions(data, benchmark=spec.benchmark, strict=False).benchmark_column:
+        return None  # the column says which, and agrees with --benchmark (checked)
+    fit = twin_fit(spec.benchmark, spec.split, result.predictions, examples, data_dir)
+    if fit is None or not fit.far_better:
+        return None
+    return (
+        f"its depths {fit.describe()}: they look made for {fit.twin}, so add them with "
+        f"--benchmark {fit.twin}; if {spec.benchmark} is right, give the file a benchmark "
+        f"column saying {spec.benchmark}"
+    )

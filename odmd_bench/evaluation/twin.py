@@ -1,0 +1,100 @@
+"""A predictions file scored against the wrong one of the two ODMD benchmarks.
+
+``odmd-v1`` and ``odmd-paper`` have the same sets of the same sizes, so a file made for
+one passes every check of the other, and a file without a ``benchmark`` column is
+scored against ``odmd-v1`` by default. Its numbers are then those of depths for other
+examples: meaningless, yet plausible enough to be copied into a paper. When the other
+benchmark is in the data folder, :func:`twin_fit` scores the same depths against it; on
+the sets whose content differs, depths made for the other benchmark fit it several
+times better, which no method's depths do by chance over thousands of examples.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from odmd_bench.data.examples import Examples
+from odmd_bench.data.registry import set_file
+from odmd_bench.errors import OdmdError
+
+#: The benchmark whose sets have the same names and sizes, for each that has one.
+TWINS: dict[str, str] = {"odmd-v1": "odmd-paper", "odmd-paper": "odmd-v1"}
+#: The other benchmark fits "far better" when its mean percent error is below this
+#: fraction of the scored one's.
+FAR_BETTER = 0.5
+
+
+@dataclass(frozen=True)
+class TwinFit:
+    """The same depths' mean percent error on the scored benchmark and on its twin.
+
+    Attributes:
+        benchmark: the benchmark scored.
+        twin: the other one.
+        sets: the sets compared (those whose content differs between the two).
+        scored: mean over ``sets`` of each set's mean percent error on ``benchmark``.
+        other: the same on ``twin``.
+    """
+
+    benchmark: str
+    twin: str
+    sets: tuple[str, ...]
+    scored: float
+    other: float
+
+    @property
+    def far_better(self) -> bool:
+        """Whether the depths fit the twin far better than the benchmark scored."""
+        return self.other < FAR_BETTER * self.scored
+
+    def describe(self) -> str:
+        """``fit odmd-paper far better (... on normal, camera, object)``."""
+        return (
+            f"fit {self.twin} far better than {self.benchmark} (mean percent error "
+            f"{self.other:.2f} against {self.scored:.2f} on {', '.join(self.sets)})"
+        )
+
+
+def _mean_percent(
+    depths: Mapping[str, np.ndarray], sets: Mapping[str, Examples], names: tuple[str, ...]
+) -> float:
+    return float(np.mean([np.mean(np.abs(depths[s] - sets[s].depth) / sets[s].depth) * 100 for s in names]))
+
+
+def twin_fit(
+    benchmark: str,
+    split: str,
+    depths: Mapping[str, np.ndarray],
+    examples: Mapping[str, Examples],
+    data_dir: str | os.PathLike[str] | None = None,
+) -> TwinFit | None:
+    """How ``depths``, scored against ``examples`` of ``benchmark``, fit its twin.
+
+    None where there is nothing to compare: no twin, the twin's ``split`` is not in
+    the data folder (it is never generated or imported for this), it cannot be loaded,
+    or no set scored differs between the two (the robot sets are the same).
+    """
+    from odmd_bench.data.store import load_split
+
+    twin = TWINS.get(benchmark)
+    if twin is None or not set_file(twin, split, data_dir).is_file():
+        return None
+    try:
+        other = load_split(split, twin, data_dir, sets=[s for s in depths if s in examples])
+    except OdmdError:
+        return None
+    names = tuple(
+        s
+        for s in other
+        if len(other[s]) == len(examples[s]) == len(depths[s])
+        and other[s].attrs.get("content_sha256") != examples[s].attrs.get("content_sha256")
+    )
+    if not names:
+        return None
+    return TwinFit(
+        benchmark, twin, names, _mean_percent(depths, examples, names), _mean_percent(depths, other, names)
+    )
