@@ -282,32 +282,8 @@ def atomic_path(path: str | os.PathLike[str], *, into_devices: bool = True) -> I
     savefig); see also :func:`atomic_write`. ``into_devices=False``: a device or pipe in
     the file's place is replaced instead (the data files).
     """
-    target, replace = write_target(path, into_devices=into_devices)
-    if not replace:
-        with _through_temp(target) as through:
-            yield through
-        return
-    clean_stale_temps(target)
-    fd, tmp = _temp_beside(target)
-    os.close(fd)
-    try:
-        yield Path(tmp)
-        try:
-            with open(tmp, "rb+") as fh:
-                os.fsync(fh.fileno())
-            os.replace(tmp, target)
-        except OSError as e:
-            raise storage_error(e, target, "write") from None
-    except OSError as e:
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(tmp)
-        if isinstance(e, OdmdError) or e.errno not in _FULL:
-            raise
-        raise storage_error(e, target, "write") from None
-    except BaseException:
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(tmp)
-        raise
+    with atomic_paths([path], into_devices=into_devices) as (tmp,):
+        yield tmp
 
 
 @contextlib.contextmanager
@@ -386,9 +362,10 @@ def _commit(moves: list[tuple[Path, Path]]) -> None:
         for tmp, _ in moves:
             with open(tmp, "rb+") as fh:
                 os.fsync(fh.fileno())
-        backups = [_backup(target) for _, target in moves]
+        # One file needs no second name: its one move replaces it, or leaves it as it was.
+        backups = [_backup(target) for _, target in moves] if len(moves) > 1 else [None] * len(moves)
     except OSError as e:
-        raise storage_error(e, moves[0][1].parent, "write into") from None
+        raise storage_error(*_named(e, [target for _, target in moves])) from None
     done = 0
     try:
         for tmp, target in moves:
@@ -409,17 +386,24 @@ def _commit(moves: list[tuple[Path, Path]]) -> None:
                     os.unlink(old)
 
 
+def _named(e: OSError, targets: Sequence[Path]) -> tuple[OSError, Path, str]:
+    """``storage_error``'s arguments for a failure writing ``targets``: the file if one, else their folder."""
+    return (e, targets[0], "write") if len(targets) == 1 else (e, targets[0].parent, "write into")
+
+
 @contextlib.contextmanager
-def atomic_paths(paths: Sequence[str | os.PathLike[str]]) -> Iterator[list[Path]]:
+def atomic_paths(
+    paths: Sequence[str | os.PathLike[str]], *, into_devices: bool = True
+) -> Iterator[list[Path]]:
     """Temporary file names for several paths; on success all replace their paths, or none does.
 
     The body writes each temporary file (text, HDF5, a figure...). Then every file is
     moved over its path; if a move fails (a file that cannot be replaced), the files
     already moved get their old versions back, so a failure anywhere leaves every path
     as it was. Devices and pipes among the paths (:func:`write_target`) are written into
-    after every file has been moved.
+    after every file has been moved; with ``into_devices=False`` they are replaced too.
     """
-    plans = [write_target(p) for p in paths]
+    plans = [write_target(p, into_devices=into_devices) for p in paths]
     temps: list[Path] = []
     try:
         for target, replace in plans:
@@ -435,7 +419,7 @@ def atomic_paths(paths: Sequence[str | os.PathLike[str]]) -> Iterator[list[Path]
         except OSError as e:
             if isinstance(e, OdmdError) or e.errno not in _FULL:
                 raise
-            raise storage_error(e, plans[0][0].parent, "write into") from None
+            raise storage_error(*_named(e, [target for target, _ in plans])) from None
         _commit([(tmp, target) for tmp, (target, replace) in zip(temps, plans, strict=True) if replace])
         for through, (device, replace) in zip(temps, plans, strict=True):
             if not replace:
