@@ -247,6 +247,24 @@ def test_sets_subset(data: Path, tmp_path: Path) -> None:
         evaluate(full, benchmark=BENCH, sets=["robt"])
 
 
+def test_a_set_whose_rows_all_failed_is_not_told_to_use_sets(data: Path, tmp_path: Path) -> None:
+    # --sets would not help: those rows are checked anyway. Say what would.
+    floats = [
+        r.replace(f",{r.split(',')[2]},", f",{r.split(',')[2]}.0,") if ",robot," in r else r for r in rows()
+    ]
+    problems = problems_of(write(tmp_path, HEADER + "\n".join(floats)))
+    assert (
+        "set 'robot' of benchmark 'odmd-paper' has no usable row (each of its rows has a problem)" in problems
+    )
+    assert not any("--sets" in q for q in problems)
+    renamed = [r.replace(",camera,", ",perturb_motion,") for r in rows()]  # the original release's name
+    problems = problems_of(write(tmp_path, HEADER + "\n".join(renamed)))
+    assert any("('perturb_motion': did you mean 'camera'?)" in q for q in problems), problems
+    assert (
+        "set 'camera' of benchmark 'odmd-paper' has no rows (check the set names refused above)" in problems
+    )
+
+
 def test_rows_of_sets_left_out_are_still_checked(data: Path, tmp_path: Path) -> None:
     """A file is refused or not whatever --sets says.
 

@@ -147,11 +147,18 @@ def _place(
     depth[parsed.indices[mine]] = parsed.depths[mine]
     seen[parsed.indices[mine]] = True
     gaps = np.flatnonzero(~seen)
-    if gaps.size == n:
+    if gaps.size == n and code >= 0:
+        # The set is named in the file, but every row of it was refused: --sets would not help.
+        problems.add(
+            f"set {s!r} of benchmark {bench.name!r} has no usable row (each of its rows has a problem)"
+        )
+    elif gaps.size == n:
         if board:
             hint = "a board needs predictions for every example of every set"
         elif sets is not None:
             hint = "it was asked for"
+        elif parsed.problems:  # rows under a name refused above may well be this set's
+            hint = "check the set names refused above"
         else:
             hint = f"to score only some sets, name them, e.g. --sets {','.join(x for x in scope if x != s)}"
         problems.add(f"set {s!r} of benchmark {bench.name!r} has no rows ({hint})")

@@ -179,6 +179,17 @@ def _finish(
     )
 
 
+#: The original release's names of the ODMD sets (its file names), and other spellings.
+_ALIASES = {
+    "perturb_motion": "camera",
+    "perturb_camera": "camera",
+    "perturb_camera_motion": "camera",
+    "perturb_detection": "object",
+    "perturb_object": "object",
+    "perturb_object_detection": "object",
+}
+
+
 def _check_set_names(
     names: tuple[str, ...],
     codes: np.ndarray,
@@ -195,7 +206,9 @@ def _check_set_names(
     note = f"expected one of {', '.join(valid)}"
     for r in bad[:SHOWN]:
         name = names[codes[r]]
-        where = f"line {lines[r]} ({show(name)}{closest(name, valid).replace('; ', ': ')})"
+        alias = _ALIASES.get(name.strip().lower())
+        hint = f": did you mean {alias!r}?" if alias in valid else closest(name, valid).replace("; ", ": ")
+        where = f"line {lines[r]} ({show(name)}{hint})"
         problems.add(kind, where, note, at=int(lines[r]))
     if bad.size > SHOWN:
         problems.add(kind, count=int(bad.size - SHOWN))
