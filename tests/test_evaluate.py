@@ -229,6 +229,32 @@ def test_zero_and_negative_depths_are_scored_and_warned(data: Path, tmp_path: Pa
     assert len(own(r)) == 1 and r.warnings[0].startswith("3 depths are zero or negative")
 
 
+@pytest.mark.parametrize(
+    ("factor", "expected"),
+    [
+        (
+            1000.0,
+            "a median 1000 times the true depths: depths are in metres; were they written in millimetres?",
+        ),
+        (97.0, "a median 97 times the true depths: depths are in metres; were they written in centimetres?"),
+        (0.001, "were they written in kilometres?"),
+        (30.0, "a median 30 times the true depths: depths are in metres (scored as given)"),
+        (5.0, None),
+        (0.2, None),
+    ],
+)
+def test_depths_in_another_unit_are_warned(
+    data: Path, tmp_path: Path, factor: float, expected: str | None
+) -> None:
+    p = tmp_path / "p.csv"
+    write_predictions(p, "test", {s: d * factor for s, d in truth().items()}, benchmark=BENCH)
+    result = evaluate(p)
+    units = [w for w in result.warnings if "times the true depths" in w]
+    assert len(units) == (expected is not None), units
+    assert expected is None or expected in units[0]
+    assert result.all_percent_error_mean == pytest.approx(abs(factor - 1) * 100)  # scored as given
+
+
 def test_sets_subset(data: Path, tmp_path: Path) -> None:
     t = truth()
     only = {"robot": t["robot"], "normal": t["normal"]}

@@ -104,7 +104,7 @@ def score(predictions: Predictions, examples: Mapping[str, Examples]) -> Evaluat
         "predictions_rows": predictions.n_rows,
         "ignored_columns": list(predictions.ignored_columns),
     }
-    warnings = tuple(predictions.warnings)
+    warnings = tuple(predictions.warnings) + _units_warning(preds, used)
     unpinned = [s for s in per_set if not is_pinned(predictions.benchmark, used[s].attrs)]
     if unpinned:
         provenance["unpinned_sets"] = unpinned
@@ -122,6 +122,25 @@ def score(predictions: Predictions, examples: Mapping[str, Examples]) -> Evaluat
         warnings=warnings,
         predictions=preds,
         examples=used,
+    )
+
+
+#: Median ratios of estimate to truth that say "another unit", and the unit each suggests.
+_UNITS = ((1000.0, "millimetres"), (100.0, "centimetres"), (0.001, "kilometres"))
+_FAR_OFF = 20.0
+
+
+def _units_warning(preds: Mapping[str, np.ndarray], used: Mapping[str, Examples]) -> tuple[str, ...]:
+    """A warning when the estimates are a median factor of 20 or more off the truth (metres)."""
+    ratios = [preds[s] / used[s].depth for s in preds]
+    ratio = float(np.median(np.concatenate(ratios))) if ratios else 1.0
+    if not (ratio >= _FAR_OFF or 0 < ratio <= 1 / _FAR_OFF):
+        return ()
+    factor, unit = min(_UNITS, key=lambda fu: abs(np.log(ratio / fu[0])))
+    guess = f"; were they written in {unit}?" if abs(np.log(ratio / factor)) < np.log(2) else ""
+    return (
+        f"the depths are a median {ratio:.4g} times the true depths: depths are in metres{guess} "
+        "(scored as given)",
     )
 
 
