@@ -170,11 +170,11 @@ def test_build_then_check_passes(board: Path, v1_data_dir: Path) -> None:
     assert "## odmd-v1 test" in md and "(generator v1 + imported robot)" in md
 
 
-def _nudged(path: Path, tmp_path: Path) -> Path:
-    """The predictions of ``path`` with its first estimate 1e-9 m deeper: not a copy."""
+def _nudged(path: Path, tmp_path: Path, by: float = 1e-6) -> Path:
+    """The predictions of ``path`` with its first estimate ``by`` (relative) deeper."""
     lines = path.read_text().splitlines(keepends=True)
     fields = lines[1].rstrip("\n").split(",")
-    fields[3] = repr(float(fields[3]) + 1e-9)
+    fields[3] = repr(float(fields[3]) * (1 + by))
     out = tmp_path / f"nudged-{path.name}"
     out.write_text("".join([lines[0], ",".join(fields) + "\n", *lines[2:]]))
     return out
@@ -206,6 +206,10 @@ def test_a_copy_is_refused_and_nearly_identical_predictions_share_group_1(
         lb.build(board, v1_data_dir, n_resamples=FAST)
     assert "a-copy/odmd-v1-test and box-ls/odmd-v1-test have the same predictions" in info.value.render()
     shutil.rmtree(board / lb.ENTRIES / "a-copy")
+    # A re-run elsewhere differs in the last bits (about 1e-14 for Box_LS): still a copy.
+    with pytest.raises(ValidationError, match="a copy is not a new result"):
+        _add(board, v1_data_dir, _nudged(v1_preds["box_ls"], tmp_path, by=1e-12), "a-rerun")
+    # Differing by a millionth on one example is a different result, sharing group 1.
     _add(board, v1_data_dir, _nudged(v1_preds["box_ls"], tmp_path), "a-near")
     built = lb.build(board, v1_data_dir, n_resamples=FAST)
     rows = next(b for b in built.boards if b.rows).rows
