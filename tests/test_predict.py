@@ -335,6 +335,18 @@ def test_a_gzip_file_is_read_like_the_plain_one(tmp_path: Path) -> None:
         sequences.read_sequences(path, SIZE)
 
 
+def test_box_ls_depends_on_the_image_size_only_through_its_aspect_ratio() -> None:
+    # As docs/own-data.md says: a resized copy's size gives the same depths, a swapped W, H does not.
+    text = sequences.format_sequences(_examples(20))
+    box_ls = methods.load("box-ls")
+
+    def depths(size: tuple[int, int]) -> np.ndarray:
+        return box_ls.predict(sequences.read_sequences(text.encode(), size).examples().without_truth())
+
+    np.testing.assert_allclose(depths((SIZE[0] * 3, SIZE[1] * 3)), depths(SIZE), rtol=1e-9)
+    assert np.abs(depths((SIZE[1], SIZE[0])) / depths(SIZE) - 1).max() > 1e-3
+
+
 def test_image_size_and_intrinsics_are_checked() -> None:
     with pytest.raises(UsageError, match="image size"):
         sequences.read_sequences(GOOD.encode(), (0, 480))
