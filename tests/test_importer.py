@@ -96,6 +96,14 @@ def test_unknown_or_altered_files_are_refused(original_release, tmp_path) -> Non
     import_release(path, tmp_path / "data", allow_unknown=True)
     ex = odmd_bench.load("test", "robot", "odmd-paper", tmp_path / "data")
     assert ex.attrs["source_known"] is False or ex.attrs["source_known"] == 0
+    # Under a name that is not the release's, the refusal says which names map to a set.
+    other = tmp_path / "mine" / "robot_test_v2.pk"
+    other.parent.mkdir()
+    other.write_bytes(bytes(data))
+    with pytest.raises(
+        ImportRefused, match=r"name says neither split nor set.*SPLIT_SET\.pk .*test_robot\.pk"
+    ):
+        import_release(other, tmp_path / "data2", allow_unknown=True)
 
 
 def test_garbage_and_wrong_layouts_are_refused(tmp_path) -> None:

@@ -253,7 +253,12 @@ def read_original(path: str | os.PathLike[str], *, allow_unknown: bool = False) 
     else:
         guess = target_from_name(p)
         if guess is None:
-            raise ImportRefused(f"{p}: unknown file whose name says neither split nor set")
+            raise ImportRefused(
+                f"{p}: unknown file whose name says neither split nor set; an unknown file is "
+                "imported by the original release's name for it: SPLIT_SET.pk (SPLIT val or test, "
+                "SET normal, perturb_motion, perturb_detection or robot; e.g. test_robot.pk) or "
+                "SPLIT_odms_detect_SET.pk (SET normal, perturb, robot or driving)"
+            )
         target = guess
     ex = convert(safe_unpickle(data, str(p)), str(p), target)
     unusable = set_problems(ex)
