@@ -308,8 +308,9 @@ def predict_details(
                 intrinsics = examples.intrinsics()
             except DataError as e:
                 raise DataError(
-                    e.message + "; the robust method is calibrated: give intrinsics="
-                    "(fx, fy, cx, cy, width, height) or use mode='scale' (box sizes only)",
+                    e.message + "; the robust method is calibrated: give the intrinsics "
+                    "(--intrinsics FX FY CX CY with predict; intrinsics=(fx, fy, cx, cy, width, "
+                    "height) in Python) or use the box sizes only (--mode scale; mode='scale')",
                     e.problems,
                 ) from None
         if len(intrinsics) != 6 or not all(np.isfinite(float(v)) for v in intrinsics):

@@ -147,8 +147,12 @@ def load(name: str) -> Method:
     """
     found = [ep for ep in _entry_points() if ep.name == name]
     if not found:
+        from odmd_bench.evaluation.problems import closest
+
         known = ", ".join(names()) or "none"
-        raise UsageError(f"no method {name!r} is registered (group {GROUP}); registered: {known}")
+        raise UsageError(
+            f"no method {name!r} is registered{closest(name, names())} (group {GROUP}); registered: {known}"
+        )
     if len(found) > 1:
         raise UsageError(
             f"method {name!r} is registered more than once; uninstall all but one",

@@ -131,7 +131,9 @@ def test_options_reach_only_the_methods_whose_functions_take_them() -> None:
 def test_an_unknown_method_lists_the_registered_ones() -> None:
     with pytest.raises(UsageError, match="no method 'median' is registered") as e:
         methods.load("median")
-    assert "box-ls" in str(e.value) and "robust" in str(e.value)
+    assert "box-ls" in str(e.value) and "robust" in str(e.value) and "did you mean" not in str(e.value)
+    with pytest.raises(UsageError, match="no method 'boxls' is registered; did you mean 'box-ls'?"):
+        methods.load("boxls")
 
 
 def test_a_third_party_method_is_found_and_run(plugins: Path) -> None:

@@ -257,7 +257,7 @@ def test_fill_rule_equals_omit_when_nothing_is_missing_and_differs_otherwise() -
 
 def test_no_intrinsics_is_a_clear_error() -> None:
     ex = _without(odmd_bench.generate(10, rng=13), "fx")
-    with pytest.raises(DataError, match="calibrated.*mode='scale'"):
+    with pytest.raises(DataError, match="calibrated.*--mode scale; mode='scale'"):
         robust.predict(ex)
 
 
