@@ -515,7 +515,7 @@ def test_the_readmes_evaluate_output_is_what_the_commands_print(
 ) -> None:
     """README.md's quick start: `baseline box-ls -o box-ls.csv` then `evaluate box-ls.csv`."""
     readme = (Path(__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8")
-    intro = "`evaluate` prints (Box_LS on `odmd-v1` test):\n\n```\n"
+    intro = "`evaluate` prints (Box_LS on `odmd-v1` test; the warning goes to standard error):\n\n```\n"
     start = readme.index(intro) + len(intro)
     shown = readme[start : readme.index("```", start)]
     monkeypatch.chdir(tmp_path)
@@ -524,4 +524,4 @@ def test_the_readmes_evaluate_output_is_what_the_commands_print(
     assert made.exit_code == 0, made.output
     r = runner.invoke(cli, ["evaluate", "box-ls.csv", "--data-dir", str(v1_data_dir)])
     assert r.exit_code == 0, r.output
-    assert r.stdout == shown
+    assert r.stdout + r.stderr == shown
