@@ -88,7 +88,7 @@ def test_depths_made_for_the_benchmark_scored_give_no_warning(
     write_predictions(p, "test", _truth("odmd-v1", both, noise))
     result = evaluate(p, data_dir=both)
     assert not _twin_warnings(result)
-    fit = twin_fit("odmd-v1", "test", result.predictions, result.examples, both)
+    fit = twin_fit(result, both)
     assert fit is not None and fit.sets == ("normal", "camera", "object")  # robot is the same in both
     assert fit.other >= FAR_BETTER * fit.scored
 

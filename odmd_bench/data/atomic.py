@@ -286,18 +286,6 @@ def atomic_path(path: str | os.PathLike[str], *, into_devices: bool = True) -> I
         yield tmp
 
 
-@contextlib.contextmanager
-def _through_temp(device: Path) -> Iterator[Path]:
-    """A temporary file whose content is copied into ``device`` (not a regular file) on success."""
-    tmp = _temp_elsewhere()
-    try:
-        yield tmp
-        _copy_into(tmp, device)
-    finally:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-
-
 def _temp_elsewhere() -> Path:
     """An empty temporary file in the system's temporary folder (for what goes to a device)."""
     try:

@@ -274,8 +274,8 @@ def read_sequences(
 def _outside_image(corners: np.ndarray, lines: np.ndarray, size: tuple[float, float]) -> tuple[str, ...]:
     """A warning when detected boxes lie wholly outside the image: a wrong image size, likely.
 
-    Box_LS does not notice (it uses ratios of box sizes), but every method that reads
-    positions or sizes relative to the image does, DBox first among them.
+    Box_LS notices only a wrong aspect ratio (it uses ratios of box sizes), but every
+    method that reads positions or sizes relative to the image does, DBox first among them.
     """
     w, h = size
     x1, y1, x2, y2 = corners.T

@@ -194,7 +194,7 @@ def evaluate(
     predictions = check_coverage(parsed, {s: len(ex) for s, ex in examples.items()}, sets=sets)
     result = score(predictions, examples)
     if not parsed.benchmark_column:
-        fit = twin_fit(result.benchmark, result.split, predictions.depths, examples, data_dir)
+        fit = twin_fit(result, data_dir)
         if fit is not None and fit.far_better:
             said = (
                 f"as asked (--benchmark {benchmark})"

@@ -12,14 +12,14 @@ times better, which no method's depths do by chance over thousands of examples.
 from __future__ import annotations
 
 import os
-from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
 
-from odmd_bench.data.examples import Examples
 from odmd_bench.data.registry import set_file
 from odmd_bench.errors import OdmdError
+from odmd_bench.evaluation.metrics import percent_error
+from odmd_bench.evaluation.result import EvaluationResult
 
 #: The benchmark whose sets have the same names and sizes, for each that has one.
 TWINS: dict[str, str] = {"odmd-v1": "odmd-paper", "odmd-paper": "odmd-v1"}
@@ -59,42 +59,31 @@ class TwinFit:
         )
 
 
-def _mean_percent(
-    depths: Mapping[str, np.ndarray], sets: Mapping[str, Examples], names: tuple[str, ...]
-) -> float:
-    return float(np.mean([np.mean(np.abs(depths[s] - sets[s].depth) / sets[s].depth) * 100 for s in names]))
+def twin_fit(result: EvaluationResult, data_dir: str | os.PathLike[str] | None = None) -> TwinFit | None:
+    """How the depths of ``result`` fit the twin of the benchmark they were scored against.
 
-
-def twin_fit(
-    benchmark: str,
-    split: str,
-    depths: Mapping[str, np.ndarray],
-    examples: Mapping[str, Examples],
-    data_dir: str | os.PathLike[str] | None = None,
-) -> TwinFit | None:
-    """How ``depths``, scored against ``examples`` of ``benchmark``, fit its twin.
-
-    None where there is nothing to compare: no twin, the twin's ``split`` is not in
-    the data folder (it is never generated or imported for this), it cannot be loaded,
-    or no set scored differs between the two (the robot sets are the same).
+    None where there is nothing to compare: no twin, the twin's split is not in the data
+    folder (it is never generated or imported for this), it cannot be loaded or scored
+    against, or no set scored differs between the two (the robot sets are the same).
     """
     from odmd_bench.data.store import load_split
 
-    twin = TWINS.get(benchmark)
-    if twin is None or not set_file(twin, split, data_dir).is_file():
+    twin = TWINS.get(result.benchmark)
+    if twin is None or not set_file(twin, result.split, data_dir).is_file():
         return None
+    depths, examples = result.predictions, result.examples
     try:
-        other = load_split(split, twin, data_dir, sets=[s for s in depths if s in examples])
+        other = load_split(result.split, twin, data_dir, sets=list(depths))
+        names = tuple(
+            s
+            for s in other
+            if len(other[s]) == len(examples[s])
+            and other[s].attrs.get("content_sha256") != examples[s].attrs.get("content_sha256")
+        )
+        there = [float(np.mean(percent_error(other[s].depth, depths[s]))) for s in names]
     except OdmdError:
         return None
-    names = tuple(
-        s
-        for s in other
-        if len(other[s]) == len(examples[s]) == len(depths[s])
-        and other[s].attrs.get("content_sha256") != examples[s].attrs.get("content_sha256")
-    )
     if not names:
         return None
-    return TwinFit(
-        benchmark, twin, names, _mean_percent(depths, examples, names), _mean_percent(depths, other, names)
-    )
+    here = [result.sets[s]["percent_error"]["mean"] for s in names]
+    return TwinFit(result.benchmark, twin, names, float(np.mean(here)), float(np.mean(there)))

@@ -144,7 +144,7 @@ def add_entry(
                     for key in copied
                 ],
             )
-        misfit = _fits_the_twin(data, spec, result, examples, data_dir)
+        misfit = _fits_the_twin(data, spec, result, data_dir)
         if misfit:
             raise ValidationError(title, [misfit])
         folder.mkdir(parents=True, exist_ok=True)
@@ -156,11 +156,7 @@ def add_entry(
 
 
 def _fits_the_twin(
-    data: bytes,
-    spec: BoardSpec,
-    result: EvaluationResult,
-    examples: dict[str, Examples],
-    data_dir: str | os.PathLike[str] | None,
+    data: bytes, spec: BoardSpec, result: EvaluationResult, data_dir: str | os.PathLike[str] | None
 ) -> str | None:
     """Why predictions without a benchmark column look made for the twin benchmark, if they do.
 
@@ -172,7 +168,7 @@ def _fits_the_twin(
 
     if parse_predictions(data, benchmark=spec.benchmark, strict=False).benchmark_column:
         return None  # the column says which, and agrees with --benchmark (checked)
-    fit = twin_fit(spec.benchmark, spec.split, result.predictions, examples, data_dir)
+    fit = twin_fit(result, data_dir)
     if fit is None or not fit.far_better:
         return None
     return (
