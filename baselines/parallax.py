@@ -39,6 +39,14 @@ Further fallbacks (each example is counted once, in this order of precedence):
     ``combine="lsq"`` only: the combined solution is not finite (both denominators 0,
     for instance a single detected end point copied to the other): ``fallback_depth``.
 
+One more count is not a fallback but a warning, counted besides them:
+``no_lateral_motion``, the examples with a detection whose camera did not move in x or y
+between the two end points. Motion parallax needs lateral motion; without it both
+numerators are 0 and the formula gives 0 m (or, where a denominator is 0 as well, the
+1 m fallback above), which is kept (the paper's formula, and the original release's
+output) and scored as given. z-only data (ODMS, a camera driving straight on) gives it
+for every example: use Box_LS or DBox there.
+
 Opt-in variant ``combine="lsq"``: instead of averaging ``Z_x = N_x / D_x`` and
 ``Z_y = N_y / D_y`` (numerators ``N`` = focal length times camera motion, denominators
 ``D`` = the scale-corrected change in box position), solve the two equations
@@ -72,6 +80,9 @@ DEFAULT_FALLBACK_DEPTH = 1.0
 
 #: Fallback reasons, in order of precedence.
 FALLBACKS: tuple[str, ...] = ("no_detection", "non_finite_x", "non_finite_y", "non_finite")
+
+#: Counted besides the fallbacks: examples without lateral camera motion (depth 0 m).
+NO_LATERAL_MOTION = "no_lateral_motion"
 
 Fill = Literal["endpoints", "all"]
 FILLS: tuple[str, ...] = ("endpoints", "all")
@@ -138,7 +149,7 @@ def predict_report(
     Returns:
         ``(depths, fallbacks)``: ``depths`` (N,) finite depth estimates at the last
         observation, metres; ``fallbacks`` ``{reason: count}`` for every reason in
-        :data:`FALLBACKS` (zeros included).
+        :data:`FALLBACKS` and :data:`NO_LATERAL_MOTION` (zeros included).
 
     Raises:
         odmd_bench.DataError: If the set carries no camera intrinsics.
@@ -159,7 +170,9 @@ def predict_report(
         den_x = (first[:, 0] - cx) * (last[:, 2] / first[:, 2]) - (last[:, 0] - cx)
         den_y = (first[:, 1] - cy) * (last[:, 3] / first[:, 3]) - (last[:, 1] - cy)
     depth, counts = combine_halves((num_x, den_x), (num_y, den_y), none, fallback_depth, combine, ("x", "y"))
-    return depth, {**dict.fromkeys(FALLBACKS, 0), "no_detection": int(none.sum()), **counts}
+    flat = (move[:, 0] == 0) & (move[:, 1] == 0) & ~none  # nothing for the formula to work with
+    report = {**dict.fromkeys(FALLBACKS, 0), "no_detection": int(none.sum()), **counts}
+    return depth, {**report, NO_LATERAL_MOTION: int(flat.sum())}
 
 
 def combine_halves(

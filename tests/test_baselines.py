@@ -221,7 +221,13 @@ def endpoint_examples() -> odmd_bench.Examples:
 def test_parallax_fallbacks_follow_the_original_release() -> None:
     ex = endpoint_examples()
     depth, counts = parallax.predict_report(ex)
-    assert counts == {"no_detection": 1, "non_finite_x": 2, "non_finite_y": 1, "non_finite": 0}
+    assert counts == {
+        "no_detection": 1,
+        "non_finite_x": 2,
+        "non_finite_y": 1,
+        "non_finite": 0,
+        "no_lateral_motion": 0,
+    }
     assert np.isfinite(depth).all()
     assert depth[0] == pytest.approx(ex.depth[0], rel=1e-9)
     np.testing.assert_array_equal(depth[[1, 2, 4]], 1.0)
@@ -232,6 +238,22 @@ def test_parallax_fallbacks_follow_the_original_release() -> None:
     assert depth[3] == pytest.approx(ex.depth[3], rel=1e-9)
     assert parallax.predict(x_only)[0] == depth[3]
     np.testing.assert_array_equal(parallax.predict(ex, fallback_depth=2.5)[[1, 2, 4]], 2.5)
+
+
+@pytest.mark.parametrize("combine", ["mean", "lsq"])
+def test_parallax_counts_the_examples_without_lateral_motion(combine: str) -> None:
+    # z-only motion (the ODMS preset): the formula gives 0 m (1 m where a denominator is
+    # 0 as well), said in the report for every example.
+    ex = odmd_bench.generate(6, "odms", perturbation="normal", rng=3)
+    depth, counts = parallax.predict_report(ex, combine=combine)  # type: ignore[arg-type]
+    assert set(depth.tolist()) <= {0.0, 1.0} and (depth == 0).sum() >= 4
+    assert counts["no_lateral_motion"] == 6
+    # One example given lateral motion is estimated, and no longer counted.
+    camera = ex.camera.copy()
+    camera[0, 0, 0] = 0.05
+    moved = odmd_bench.Examples(ex.boxes, ex.detected, camera, ex.depth, attrs=ex.attrs)
+    depth, counts = parallax.predict_report(moved, combine=combine)  # type: ignore[arg-type]
+    assert depth[0] != 0 and counts["no_lateral_motion"] == 5
 
 
 def test_expansion_fallbacks_follow_the_original_release() -> None:
