@@ -506,3 +506,18 @@ def test_the_fast_reader_asks_older_pandas_for_exact_decimals() -> None:
 
     assert dict(sequence_rows._round_trip("2.0.3")) == {"float_precision": "round_trip"}
     assert dict(sequence_rows._round_trip("3.1.0rc1")) == {}
+
+
+def test_the_error_summary_keeps_its_columns_apart_for_large_errors() -> None:
+    from odmd_bench.cli.predict import error_summary
+
+    # Millimetres written as metres: errors of a million per cent and more.
+    text = error_summary(np.array([0.001, 2.0, np.nan]), np.array([12345.0, 1.9, 1.0]))
+    header, percent, absolute = text.splitlines()[1:]
+    assert header.split() == ["mean", "median", "min", "max", "std"]
+    cells = [row[20:].split() for row in (percent, absolute)]
+    assert [len(c) for c in cells] == [5, 5]
+    assert float(cells[0][3]) == pytest.approx(1234499900.0)
+    assert float(cells[1][3]) == pytest.approx(12344.999)
+    # right-aligned under their headers
+    assert all(len(row) == len(header) for row in (percent, absolute))

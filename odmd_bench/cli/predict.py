@@ -29,11 +29,20 @@ def error_summary(truth: Any, depth: Any) -> str:
 
     known = np.isfinite(truth)
     m = set_metrics(truth[known], depth[known])
+    rows = {
+        "percent error (%)": [f"{m['percent_error'][s]:.2f}" for s in STATS],
+        "absolute error (m)": [f"{m['absolute_error'][s]:.4f}" for s in STATS],
+    }
+    # Each column as wide as its widest cell and at least 9, so that large errors
+    # never run into each other.
+    widths = [max(8, len(s), *(len(r[k]) for r in rows.values())) + 1 for k, s in enumerate(STATS)]
     lines = [
         f"error against the true depths given ({m['n']} of {len(truth)} sequences):",
-        f"{'':20}" + "".join(f"{s:>9}" for s in STATS),
-        f"{'percent error (%)':20}" + "".join(f"{m['percent_error'][s]:9.2f}" for s in STATS),
-        f"{'absolute error (m)':20}" + "".join(f"{m['absolute_error'][s]:9.4f}" for s in STATS),
+        f"{'':20}" + "".join(f"{s:>{w}}" for s, w in zip(STATS, widths, strict=True)),
+        *(
+            f"{name:20}" + "".join(f"{c:>{w}}" for c, w in zip(cells, widths, strict=True))
+            for name, cells in rows.items()
+        ),
     ]
     return "\n".join(lines)
 
