@@ -434,6 +434,60 @@ def test_build_without_matplotlib_says_so(
     assert not (board / lb.PLOT).exists()
 
 
+def test_check_finds_a_plot_left_from_another_board(
+    board: Path, v1_data_dir: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    pytest.importorskip("matplotlib")
+    from odmd_bench.leaderboard.plot import plot_boards
+
+    built = lb.build(board, v1_data_dir, n_resamples=FAST)
+    lb.write(board, built)
+    png = board / lb.PLOT
+    assert lb.plot_source(png) == lb.board_digest((board / lb.JSON_FILE).read_text(encoding="utf-8"))
+    assert lb.check(board, v1_data_dir, n_resamples=FAST) == []
+    # Drawn from another leaderboard.json: out of date.
+    plot_boards(built.boards, png, source="0" * 64)
+    (problem,) = lb.check(board, v1_data_dir, n_resamples=FAST)
+    assert problem.startswith("leaderboard.png was drawn from another board") and "[plot]" in problem
+    # Building without the plot leaves it, and says it is stale.
+    said = lb.write(board, built, plot=False)
+    assert any(s.startswith("warning: leaderboard.png was drawn from another board") for s in said)
+    # A plot that records nothing (drawn by hand, or by an older odmd-bench).
+    plot_boards(built.boards, png)
+    assert lb.plot_source(png) is None
+    assert [p.split(";")[0] for p in lb.check(board, v1_data_dir, n_resamples=FAST)] == [
+        "leaderboard.png does not record the board it was drawn from"
+    ]
+    png.write_bytes(b"not a png")
+    assert len(lb.check(board, v1_data_dir, n_resamples=FAST)) == 1
+    # No plot is not a problem: it is optional.
+    png.unlink()
+    assert lb.check(board, v1_data_dir, n_resamples=FAST) == []
+    lb.write(board, built)
+    assert lb.check(board, v1_data_dir, n_resamples=FAST) == []
+
+
+def test_plot_source_reads_only_up_to_the_image_data(tmp_path: Path) -> None:
+    import struct
+    import zlib
+
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+
+    head = b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", bytes(13))
+    key = lb.PLOT_SOURCE_KEY.encode()
+    path = tmp_path / "p.png"
+    path.write_bytes(head + chunk(b"tEXt", key + b"\0abc") + chunk(b"IDAT", b"") + chunk(b"IEND", b""))
+    assert lb.plot_source(path) == "abc"
+    # after the image data: not read; truncated or absurd chunk lengths: None
+    path.write_bytes(head + chunk(b"IDAT", b"") + chunk(b"tEXt", key + b"\0abc"))
+    assert lb.plot_source(path) is None
+    path.write_bytes(head + struct.pack(">I", 2**31) + b"tEXt")
+    assert lb.plot_source(path) is None
+    path.write_bytes(head[:20])
+    assert lb.plot_source(path) is None
+
+
 # ----------------------------------------------------------------------------- CLI
 
 

@@ -12,7 +12,7 @@ import re
 from pathlib import Path
 
 from odmd_bench.errors import ValidationError
-from odmd_bench.leaderboard.files import JSON_FILE, MARKDOWN, README, stale_readme
+from odmd_bench.leaderboard.files import JSON_FILE, MARKDOWN, README, plot_problem, stale_readme
 from odmd_bench.leaderboard.render import build
 
 #: Longest value a difference line shows.
@@ -155,7 +155,8 @@ def check(
     Entry problems (metadata, data hashes, predictions) come first; when there are
     none, the committed ``LEADERBOARD.md`` and ``leaderboard.json`` (and the summary
     between the markers of ``../README.md``, where it has them) are compared with what
-    ``build`` would write now. The plot is not compared.
+    ``build`` would write now, and ``leaderboard.png``, where there is one, must record
+    the SHA-256 of that JSON (its pixels are not compared: they depend on matplotlib).
 
     Args:
         root: the leaderboard folder.
@@ -181,6 +182,9 @@ def check(
         if committed != text:
             found = differ(committed, text, name)
             problems.extend(found or [f"{name}: differs from what build writes (whitespace or line ends)"])
+    stale_plot = plot_problem(root, built.json_text)
+    if stale_plot is not None:
+        problems.append(stale_plot)
     stale = stale_readme(root, built.readme_block)
     if stale is not None:
         _, committed, rebuilt = stale

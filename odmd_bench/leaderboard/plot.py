@@ -8,14 +8,20 @@ from collections.abc import Sequence
 import numpy as np
 
 from odmd_bench.leaderboard.board import Board
+from odmd_bench.leaderboard.files import PLOT_SOURCE_KEY
 from odmd_bench.leaderboard.specs import SET_TITLES
 
 
-def plot_boards(boards: Sequence[Board], path: str | os.PathLike[str], *, top: int = 3) -> None:
+def plot_boards(
+    boards: Sequence[Board], path: str | os.PathLike[str], *, top: int = 3, source: str | None = None
+) -> None:
     """Write the boards' figure to ``path`` (PNG).
 
     Per board with entries: mean percent error per set per method (bars) and median
-    percent error against true depth (binned) for the ``top`` best methods.
+    percent error against true depth (binned) for the ``top`` best methods. ``source``,
+    the SHA-256 of the ``leaderboard.json`` the boards are written to, is recorded in the
+    PNG (text key :data:`odmd_bench.leaderboard.files.PLOT_SOURCE_KEY`), so that
+    ``leaderboard check`` can tell a plot left from an earlier board.
 
     Raises:
         ModuleNotFoundError: When matplotlib is missing (it is an optional extra).
@@ -77,4 +83,7 @@ def plot_boards(boards: Sequence[Board], path: str | os.PathLike[str], *, top: i
         ax_depth.legend(fontsize=8)
         ax_depth.grid(alpha=0.3)
     with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png", dpi=110, metadata={"Software": None})
+        metadata: dict[str, str | None] = {"Software": None}
+        if source is not None:
+            metadata[PLOT_SOURCE_KEY] = source
+        fig.savefig(tmp, format="png", dpi=110, metadata=metadata)
