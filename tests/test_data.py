@@ -92,6 +92,21 @@ def test_load_generates_a_missing_generated_benchmark(tmp_path) -> None:
     assert len(ex) == 2400 and set_file("odmd-v1", "val", tmp_path).exists()
 
 
+@pytest.mark.parametrize(
+    ("call", "args", "meant"),
+    [
+        ("load", ("robot", "test"), "load('test', 'robot')"),
+        ("load", ("driving", "val", "odms-detection"), "load('val', 'driving', 'odms-detection')"),
+        ("load_split", ("odmd-paper", "test"), "load_split('test', 'odmd-paper')"),
+    ],
+)
+def test_swapped_arguments_get_the_call_as_meant(call, args, meant, tmp_path) -> None:
+    with pytest.raises(odmd_bench.UsageError, match="the split comes first") as info:
+        getattr(odmd_bench, call)(*args, data_dir=tmp_path)
+    assert str(info.value).endswith(meant)
+    assert not list(tmp_path.iterdir())  # refused before anything is generated
+
+
 def test_load_of_a_missing_imported_benchmark_says_what_to_run(tmp_path) -> None:
     with pytest.raises(odmd_bench.DataError, match="odmd-bench import"):
         odmd_bench.load("test", "normal", "odmd-paper", tmp_path)

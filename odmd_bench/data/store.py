@@ -27,8 +27,16 @@ from odmd_bench.data.generator import GENERATOR_VERSION, generate
 from odmd_bench.data.hashing import content_sha256, group_attrs, set_arrays
 from odmd_bench.data.io import read_set, write_sets
 from odmd_bench.data.manifests import read_manifest, splits_dir
-from odmd_bench.data.registry import check_set, check_split, get_benchmark, rebuild_command, set_file
-from odmd_bench.errors import DataError, MissingDataError
+from odmd_bench.data.registry import (
+    BENCHMARKS,
+    SPLITS,
+    check_set,
+    check_split,
+    get_benchmark,
+    rebuild_command,
+    set_file,
+)
+from odmd_bench.errors import DataError, MissingDataError, UsageError
 
 log = logging.getLogger("odmd_bench")
 
@@ -313,10 +321,34 @@ def load(
         ((3000, 10, 4), 'odmd-v1', 'robot')
         >>> tmp.cleanup()
     """
+    _check_order("load", split, set_name, benchmark)
     b = get_benchmark(benchmark)
     check_set(b, set_name)
     path = _path_for(split, benchmark, data_dir)
     return read_checked(path, benchmark, split, set_name, data_dir)
+
+
+def _check_order(call: str, split: str, second: str, benchmark: str) -> None:
+    """A :class:`UsageError` with the call as meant when its first two arguments are swapped.
+
+    ``load(split, set_name, ...)`` and ``load_split(split, benchmark, ...)`` both take the
+    split first; ``load("robot", "test")`` or ``load_split("odmd-v1", "test")`` would
+    otherwise be told only that "test" is no set or benchmark.
+    """
+    if split in SPLITS or second not in SPLITS:
+        return
+    if call == "load":
+        named = BENCHMARKS.get(benchmark)
+        if named is not None and split in named.sets:
+            raise UsageError(
+                f"load({split!r}, {second!r}): the split comes first, then the set: "
+                f"load({second!r}, {split!r}{'' if benchmark == 'odmd-v1' else f', {benchmark!r}'})"
+            )
+    elif split in BENCHMARKS:
+        raise UsageError(
+            f"load_split({split!r}, {second!r}): the split comes first, then the benchmark: "
+            f"load_split({second!r}, {split!r})"
+        )
 
 
 def load_split(
@@ -326,6 +358,7 @@ def load_split(
     sets: Iterable[str] | None = None,
 ) -> dict[str, Examples]:
     """``{set: examples}`` for the sets (default: all) of one split of a benchmark."""
+    _check_order("load_split", split, benchmark, benchmark)
     b = get_benchmark(benchmark)
     names = list(sets) if sets is not None else list(b.sets)
     return {s: load(split, s, benchmark, data_dir) for s in names}
