@@ -342,6 +342,10 @@ HEADER = "split,set,index,depth\n"
         ),
         ("split,set,idx,depht\ntest,normal,0,1\n", "missing column 'depth' (the header has 'depht'"),
         ("split;set;index;depth\ntest;normal;0;1\n", "semicolons"),
+        (
+            "sequence,observation,x1,y1,x2,y2,cam_x,cam_y,cam_z\na,1,1,1,9,9,0,0,0\n",
+            "this is a sequences file (boxes and camera motion for `odmd-bench predict`)",
+        ),
         ("split,set,index,depth,depth\ntest,normal,0,1,1\n", "column 'depth' appears more than once"),
         ('split,set,index,depth\ntest,"normal,0,1\n', "not valid CSV"),
         # a quote never closed, early in a long file: named where it opens, not where the
