@@ -672,3 +672,20 @@ def test_box_ls_baseline_file_scores_the_papers_numbers(paper_data_dir: Path, tm
     assert round(d["all"]["percent_error_mean"], 2) == 11.83
     pe = d["sets"]["object"]["percent_error"]
     assert (round(pe["median"], 2), round(pe["max"], 2), round(pe["std"], 2)) == (8.90, 158.04, 28.27)
+
+
+def test_indices_counted_from_one_are_named(data: Path, tmp_path: Path) -> None:
+    shifted = [f"{split},{s},{int(i) + 1},{v}" for split, s, i, v in (r.split(",") for r in rows())]
+    problems = problems_of(write(tmp_path, "split,set,index,depth\n" + "\n".join(shifted) + "\n"))
+    named = [q for q in problems if "counted from 1" in q]
+    assert len(named) == 4 and named[0] == (
+        "set 'normal': the indices run 1..7, counted from 1; the format counts from 0 "
+        "(0..6, the examples' order in the set): subtract 1 from every index"
+    )
+    # one index too large is not the same mistake
+    last = rows()
+    last[3] = last[3].replace("test,normal,3,", "test,normal,7,")
+    problems = problems_of(write(tmp_path, "split,set,index,depth\n" + "\n".join(last) + "\n"))
+    assert not [q for q in problems if "counted from 1" in q] and any(
+        "index out of range" in q for q in problems
+    )

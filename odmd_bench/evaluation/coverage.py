@@ -98,6 +98,8 @@ def check_coverage(
     in_scope = scoped[parsed.codes]
     out = (n_row >= 0) & ((parsed.indices < 0) | (parsed.indices >= n_row))
     _out_of_range(parsed, np.flatnonzero(out), n_row, problems)
+    if out.any():
+        _one_based(parsed, size_of, problems)
     placed = in_scope & ~out
     depths = {
         s: _place(parsed, placed, code.get(s, -1), int(sizes[s]), s, scope, bench, sets, problems, board)
@@ -126,6 +128,18 @@ def _out_of_range(parsed: ParsedPredictions, rows: np.ndarray, n_row: np.ndarray
         )
     if rows.size > SHOWN:
         problems.add("index out of range", count=int(rows.size - SHOWN))
+
+
+def _one_based(parsed: ParsedPredictions, size_of: np.ndarray, problems: Problems) -> None:
+    """Name the sets whose indices run 1..n: counted from 1, where the format counts from 0."""
+    for c, s in enumerate(parsed.set_names):
+        n = int(size_of[c])
+        idx = parsed.indices[parsed.codes == c]
+        if n > 0 and idx.size and idx.min() == 1 and idx.max() == n:
+            problems.add(
+                f"set {s!r}: the indices run 1..{n}, counted from 1; the format counts from 0 "
+                f"(0..{n - 1}, the examples' order in the set): subtract 1 from every index"
+            )
 
 
 def _place(
