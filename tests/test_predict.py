@@ -521,3 +521,20 @@ def test_the_error_summary_keeps_its_columns_apart_for_large_errors() -> None:
     assert float(cells[1][3]) == pytest.approx(12344.999)
     # right-aligned under their headers
     assert all(len(row) == len(header) for row in (percent, absolute))
+
+
+def test_boxes_given_as_x_y_width_height_are_named() -> None:
+    head = "sequence,observation,x1,y1,x2,y2,cam_x,cam_y,cam_z\n"
+    # corners (100, 100)-(140, 150) written as x, y, w, h = 100, 100, 40, 50
+    text = head + "".join(
+        f"a,{i},{100 - i},{100 - i},{40 + 2 * i},{50 + 2 * i},0,0,{i / 10}\n" for i in range(1, 4)
+    )
+    problems = _problems(text).problems
+    assert any(p.startswith("most boxes end before they start") and "x2 = x + width" in p for p in problems)
+    # one box written the wrong way among corners is a mistake, not another convention
+    text = head + "".join(
+        f"a,{i},{100 - i},{100 - i},{140 + i},{150 + i},0,0,{i / 10}\n" for i in range(1, 4)
+    )
+    text += "a,4,150,96,140,154,0,0,0.4\n"
+    problems = _problems(text).problems
+    assert [p.split(" (")[0] for p in problems] == ["box with x2 <= x1"]

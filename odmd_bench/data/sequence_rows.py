@@ -233,8 +233,18 @@ def check_rows(rows: Rows, problems: Problems) -> None:
     )
     detected = ~empty.any(axis=1) & np.isfinite(box).all(axis=1)
     with np.errstate(invalid="ignore"):
-        problems.add_lines("box with x2 <= x1", detected & ~(box[:, 2] > box[:, 0]), lines)
-        problems.add_lines("box with y2 <= y1", detected & ~(box[:, 3] > box[:, 1]), lines)
+        flipped_x = detected & ~(box[:, 2] > box[:, 0])
+        flipped_y = detected & ~(box[:, 3] > box[:, 1])
+        problems.add_lines("box with x2 <= x1", flipped_x, lines)
+        problems.add_lines("box with y2 <= y1", flipped_y, lines)
+        # Most boxes "flipped", all with positive x2 and y2: widths and heights, very likely.
+        wrong = flipped_x | flipped_y
+        if wrong.sum() * 2 > detected.sum() and (box[wrong, 2:] > 0).all():
+            problems.add(
+                "most boxes end before they start, and their x2 and y2 are all positive: they look "
+                "like x, y, width, height; the columns x1, y1, x2, y2 are corners (x2 = x + width, "
+                "y2 = y + height)"
+            )
         if rows.depth is not None:
             d = rows.depth
             problems.add_lines("depth is not finite", np.isinf(d), lines)
