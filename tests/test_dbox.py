@@ -731,6 +731,25 @@ def test_p_z_per_set_misses_the_papers_robot_and_driving_means_in_the_tail_only(
             assert abs(np.sort(err)[-10:].sum() / err.sum() - 0.124) < 0.001  # the ten largest: 12 %
 
 
+def test_the_p_z_robot_val_tail_is_made_of_sequences_that_start_with_wrong_boxes(
+    paper_data_dir: Path,
+) -> None:
+    """docs/dbox.md's account of the p-z Robot tail, on val.
+
+    The ODMS-detection Robot val examples whose box width halves from one observation to
+    the next (boxes of something else at the start) carry the tail.
+    """
+    ex = odmd_bench.load("val", "robot", "odms-detection", paper_data_dir)
+    err = odmd_bench.percent_error(ex.depth, dbox.predict(ex, config="p-z"))
+    w = ex.boxes[:, :, 2]
+    ratio = w[:, 1:] / w[:, :-1]
+    wrong = ratio.min(axis=1) < 0.5
+    assert int(wrong.sum()) == 21 and sorted(set(np.argmin(ratio[wrong], axis=1).tolist())) == [0, 1, 2, 3, 4]
+    assert abs(float(err[wrong].mean()) - 141.0) < 0.05 and abs(float(err[~wrong].mean()) - 8.1) < 0.05
+    assert abs(float(err[wrong].sum() / err.sum()) - 0.17) < 0.005
+    assert int(np.count_nonzero(err > 100)) == 9 and bool(np.all(wrong[err > 100]))
+
+
 def test_p_z_on_odmd_data_runs_the_weights_selected_on_odmd_val(
     paper_data_dir: Path,
     v1_data_dir: Path,
