@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import gzip
 import json
+import os
 import shutil
 import sys
 from collections.abc import Callable
@@ -460,6 +461,10 @@ def test_check_finds_a_plot_left_from_another_board(
     ]
     png.write_bytes(b"not a png")
     assert len(lb.check(board, v1_data_dir, n_resamples=FAST)) == 1
+    png.unlink()
+    os.mkfifo(png)  # read, it would wait for a writer forever
+    (problem,) = lb.check(board, v1_data_dir, n_resamples=FAST)
+    assert problem.startswith("leaderboard.png is not a regular file")
     # No plot is not a problem: it is optional.
     png.unlink()
     assert lb.check(board, v1_data_dir, n_resamples=FAST) == []

@@ -248,6 +248,8 @@ def plot_problem(root: str | os.PathLike[str], json_text: str) -> str | None:
     if not path.exists():
         return None
     fix = "run `odmd-bench leaderboard build` with the [plot] extra (pip install 'odmd-bench[plot]')"
+    if not path.is_file():  # a folder, a pipe (never opened: it would wait for a writer)
+        return f"{PLOT} is not a regular file; remove it and {fix}"
     try:
         source = plot_source(path)
     except OSError as e:
