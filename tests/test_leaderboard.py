@@ -435,9 +435,7 @@ def test_build_without_matplotlib_says_so(
     assert not (board / lb.PLOT).exists()
 
 
-def test_check_finds_a_plot_left_from_another_board(
-    board: Path, v1_data_dir: Path, monkeypatch: pytest.MonkeyPatch
-) -> None:
+def test_check_finds_a_plot_left_from_another_board(board: Path, v1_data_dir: Path) -> None:
     pytest.importorskip("matplotlib")
     from odmd_bench.leaderboard.plot import plot_boards
 

@@ -321,34 +321,17 @@ def load(
         ((3000, 10, 4), 'odmd-v1', 'robot')
         >>> tmp.cleanup()
     """
-    _check_order("load", split, set_name, benchmark)
+    if split not in SPLITS and set_name in SPLITS and split in getattr(BENCHMARKS.get(benchmark), "sets", ()):
+        # load("robot", "test"): otherwise told only that "test" is no set
+        tail = "" if benchmark == "odmd-v1" else f", {benchmark!r}"
+        raise UsageError(
+            f"load({split!r}, {set_name!r}): the split comes first, then the set: "
+            f"load({set_name!r}, {split!r}{tail})"
+        )
     b = get_benchmark(benchmark)
     check_set(b, set_name)
     path = _path_for(split, benchmark, data_dir)
     return read_checked(path, benchmark, split, set_name, data_dir)
-
-
-def _check_order(call: str, split: str, second: str, benchmark: str) -> None:
-    """A :class:`UsageError` with the call as meant when its first two arguments are swapped.
-
-    ``load(split, set_name, ...)`` and ``load_split(split, benchmark, ...)`` both take the
-    split first; ``load("robot", "test")`` or ``load_split("odmd-v1", "test")`` would
-    otherwise be told only that "test" is no set or benchmark.
-    """
-    if split in SPLITS or second not in SPLITS:
-        return
-    if call == "load":
-        named = BENCHMARKS.get(benchmark)
-        if named is not None and split in named.sets:
-            raise UsageError(
-                f"load({split!r}, {second!r}): the split comes first, then the set: "
-                f"load({second!r}, {split!r}{'' if benchmark == 'odmd-v1' else f', {benchmark!r}'})"
-            )
-    elif split in BENCHMARKS:
-        raise UsageError(
-            f"load_split({split!r}, {second!r}): the split comes first, then the benchmark: "
-            f"load_split({second!r}, {split!r})"
-        )
 
 
 def load_split(
@@ -358,7 +341,12 @@ def load_split(
     sets: Iterable[str] | None = None,
 ) -> dict[str, Examples]:
     """``{set: examples}`` for the sets (default: all) of one split of a benchmark."""
-    _check_order("load_split", split, benchmark, benchmark)
+    if split not in SPLITS and benchmark in SPLITS and split in BENCHMARKS:
+        # load_split("odmd-v1", "test"): otherwise told only that "test" is no benchmark
+        raise UsageError(
+            f"load_split({split!r}, {benchmark!r}): the split comes first, then the benchmark: "
+            f"load_split({benchmark!r}, {split!r})"
+        )
     b = get_benchmark(benchmark)
     names = list(sets) if sets is not None else list(b.sets)
     return {s: load(split, s, benchmark, data_dir) for s in names}
