@@ -101,7 +101,7 @@ def test_unknown_and_unshipped_configurations_are_clear_errors(
         dbox.predict(ex, selection="best")
     with pytest.raises(UsageError, match="not both"):
         dbox.predict(ex, config="p", weights=dbox.weights_path("p"))
-    monkeypatch.setattr(dbox, "WEIGHTS_DIR", tmp_path)
+    monkeypatch.setattr(dbox.weights, "WEIGHTS_DIR", tmp_path)
     _write_checkpoint(tmp_path / "dbox_p.pt", 1, "p")
     with pytest.raises(DataError, match=r"no shipped weights for DBox configuration 'abs' \(shipped: p\)"):
         dbox.predict(ex, config="abs")
@@ -113,7 +113,7 @@ def test_unknown_and_unshipped_configurations_are_clear_errors(
 def test_per_set_selection_runs_the_checkpoint_chosen_for_that_set(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    monkeypatch.setattr(dbox, "WEIGHTS_DIR", tmp_path)
+    monkeypatch.setattr(dbox.weights, "WEIGHTS_DIR", tmp_path)
     _write_checkpoint(tmp_path / "dbox_p-z.pt", 1)
     _write_checkpoint(tmp_path / "dbox_p-z.normal.pt", 2)
     _write_checkpoint(tmp_path / "dbox_p-z.robot.pt", 3)
@@ -141,7 +141,7 @@ def test_weights_selected_on_the_datas_benchmark_run_on_that_benchmark(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """p-z selected on ODMD val runs on ODMD data; ODMS data and unnamed data keep the ODMS one."""
-    monkeypatch.setattr(dbox, "WEIGHTS_DIR", tmp_path)
+    monkeypatch.setattr(dbox.weights, "WEIGHTS_DIR", tmp_path)
     _write_checkpoint(tmp_path / "dbox_p-z.pt", 1)
     _write_checkpoint(tmp_path / "dbox_p-z.robot.pt", 3)
     (tmp_path / "selected-on-odmd-v1").mkdir()
@@ -219,7 +219,7 @@ def test_the_shipped_weights_are_checked_before_they_are_read(
 ) -> None:
     for suffix in (".pt", ".json"):
         shutil.copyfile(dbox.weights_path("p").with_suffix(suffix), (tmp_path / "dbox_p").with_suffix(suffix))
-    monkeypatch.setattr(dbox, "WEIGHTS_DIR", tmp_path)
+    monkeypatch.setattr(dbox.weights, "WEIGHTS_DIR", tmp_path)
     _flip_a_bit_inside_tensor_w(tmp_path / "dbox_p.pt")
     with pytest.raises(DataError, match="do not match its record"):
         dbox.predict(_examples(5, "odmd", 9), config="p")

@@ -40,7 +40,7 @@ from typing import Any
 
 import numpy as np
 import torch
-from odmd_bench_baselines.dbox import OBSERVATIONS
+from odmd_bench_baselines.dbox.weights import OBSERVATIONS
 from torch import nn
 
 from odmd_bench import DataError, Examples, UsageError, fill_missing
