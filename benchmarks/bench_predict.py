@@ -7,7 +7,7 @@ Run (one core: keep OpenBLAS to one thread):
 
 The file: 100,000 sequences of 10 observations (1,000,000 rows, about 90 MB) made from
 ODMD examples (preset odmd, perturbation both, seed 0), 2% of the boxes missed (and the
-few boxes of width or height <= 0 made by the box noise missed too), numbers written with ``repr`` precision (:func:`~odmd_bench.data.sequences.format_sequences`).
+few boxes of width or height <= 0 made by the box noise missed too), numbers written with ``repr`` precision (:func:`~odmd_bench.predict.sequences.format_sequences`).
 Rates are sequences per second = 100,000 / best time:
 
 * ``test_parse``: :func:`read_sequences` on the file's bytes, strict checks and
@@ -28,8 +28,8 @@ import pytest
 from odmd_bench_baselines import box_ls
 
 import odmd_bench
-from odmd_bench.data.sequences import Sequences, format_sequences, read_sequences
 from odmd_bench.predict import predict_sequences
+from odmd_bench.predict.sequences import Sequences, format_sequences, read_sequences
 
 N = 100_000
 SIZE = (640, 480)

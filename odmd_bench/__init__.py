@@ -16,7 +16,6 @@ from odmd_bench.data.generator import GENERATOR_VERSION, generate, stream
 from odmd_bench.data.hashing import file_sha256
 from odmd_bench.data.manifests import known_originals
 from odmd_bench.data.registry import BENCHMARKS, Benchmark, get_benchmark
-from odmd_bench.data.sequences import read_sequences
 from odmd_bench.data.store import ensure_generated, load, load_split
 from odmd_bench.errors import (
     ConfigError,
@@ -36,6 +35,7 @@ from odmd_bench.evaluation.predictions import write_predictions
 from odmd_bench.evaluation.result import EvaluationResult
 from odmd_bench.evaluation.scoring import evaluate
 from odmd_bench.predict import predict_sequences
+from odmd_bench.predict.sequences import read_sequences
 
 __version__ = "0.1.0"
 

@@ -147,7 +147,7 @@ def load(name: str) -> Method:
     """
     found = [ep for ep in _entry_points() if ep.name == name]
     if not found:
-        from odmd_bench.evaluation.problems import closest
+        from odmd_bench.inputs.problems import closest
 
         known = ", ".join(names()) or "none"
         raise UsageError(

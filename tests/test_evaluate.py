@@ -27,8 +27,8 @@ from odmd_bench.data.registry import set_file
 from odmd_bench.evaluation.coverage import check_coverage
 from odmd_bench.evaluation.parse import parse_predictions
 from odmd_bench.evaluation.predictions import write_predictions
-from odmd_bench.evaluation.rows import records
 from odmd_bench.evaluation.scoring import SHOWN, EvaluationResult, evaluate
+from odmd_bench.inputs.records import records
 
 BENCH = "odmd-paper"
 

@@ -23,10 +23,11 @@ from odmd_bench.data.io import write_sets
 from odmd_bench.data.registry import set_file
 from odmd_bench.evaluation.compare import compare_results
 from odmd_bench.evaluation.coverage import check_coverage
-from odmd_bench.evaluation.problems import MAX_ABS_DEPTH, MAX_LINE_CHARS
+from odmd_bench.evaluation.kinds import MAX_ABS_DEPTH
 from odmd_bench.evaluation.report import format_comparison, format_json
 from odmd_bench.evaluation.scoring import evaluate, score
-from odmd_bench.evaluation.source import MAX_PREDICTIONS_BYTES
+from odmd_bench.inputs.problems import MAX_LINE_CHARS
+from odmd_bench.inputs.source import MAX_PREDICTIONS_BYTES
 
 BENCH = "odmd-paper"
 N = {"normal": 6, "camera": 5, "object": 4, "robot": 3}

@@ -17,9 +17,9 @@ from click.testing import CliRunner, Result
 import odmd_bench
 from odmd_bench import DataError, Examples, UsageError, ValidationError, methods, predict
 from odmd_bench.cli.main import cli
-from odmd_bench.data import sequences
 from odmd_bench.data.pixels import boxes_to_corners
 from odmd_bench.evaluation.metrics import set_metrics
+from odmd_bench.predict import sequences
 
 SIZE = (640, 480)
 K = ("--intrinsics", "205.5", "205.5", "320.5", "240.5")
@@ -502,7 +502,7 @@ def test_boxes_wholly_outside_the_image_are_warned_of(tmp_path: Path) -> None:
 
 def test_the_fast_reader_asks_older_pandas_for_exact_decimals() -> None:
     """Before 3.1, pandas can miss 17-digit decimals by one unit in the last place without it."""
-    from odmd_bench.data import sequence_rows
+    from odmd_bench.predict import sequence_rows
 
     assert dict(sequence_rows._round_trip("2.0.3")) == {"float_precision": "round_trip"}
     assert dict(sequence_rows._round_trip("3.1.0rc1")) == {}

@@ -11,7 +11,7 @@ from odmd_bench.cli.options import data_dir_option, data_folder_problems, same_f
 from odmd_bench.errors import UsageError
 from odmd_bench.evaluation.compare import MAX_RESAMPLES
 from odmd_bench.evaluation.report import FORMATS
-from odmd_bench.evaluation.source import stdin_bytes
+from odmd_bench.inputs.source import stdin_bytes
 
 _BENCHMARK_HELP = "Benchmark the file is for [default: the file's benchmark column, else odmd-v1]."
 _SETS_HELP = (

@@ -10,7 +10,7 @@ import click
 from odmd_bench.cli.options import data_dir_option, data_folder_problems, same_file
 from odmd_bench.errors import UsageError, ValidationError
 from odmd_bench.evaluation.depth_bins import DEFAULT_BINS, ERRORS
-from odmd_bench.evaluation.source import stdin_bytes
+from odmd_bench.inputs.source import stdin_bytes
 
 _PREDS = click.Path(path_type=Path, allow_dash=True)
 _OUT = click.Path(path_type=Path, dir_okay=False)

@@ -1,6 +1,6 @@
 """``predict``: depths for a user's own detections and camera motion (a sequences CSV).
 
-The format is :mod:`odmd_bench.data.sequences`'s; the method is any registered one
+The format is :mod:`odmd_bench.predict.sequences`'s; the method is any registered one
 (:mod:`odmd_bench.methods`), run by :mod:`odmd_bench.predict`.
 """
 
@@ -102,8 +102,8 @@ def predict(
 
     from odmd_bench import methods
     from odmd_bench.data.atomic import atomic_write
-    from odmd_bench.data.sequences import read_sequences
     from odmd_bench.predict import format_depths, predict_sequences
+    from odmd_bench.predict.sequences import read_sequences
 
     target = (
         None

@@ -10,7 +10,7 @@ rounding::
 
 Missed detections (NaN in all four corners) become ``detected = False`` with a zero box
 (as the original release stores them); each method then applies the shared
-missing-detection rule. :mod:`odmd_bench.data.sequences` reads and writes these arrays
+missing-detection rule. :mod:`odmd_bench.predict.sequences` reads and writes these arrays
 as a CSV file.
 """
 
@@ -23,7 +23,7 @@ import numpy as np
 
 from odmd_bench.data.examples import Examples
 from odmd_bench.errors import DataError, UsageError
-from odmd_bench.evaluation.problems import SHOWN
+from odmd_bench.inputs.problems import SHOWN
 
 
 def image_size_of(image_size: Sequence[float]) -> tuple[float, float]:

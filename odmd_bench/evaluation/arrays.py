@@ -23,18 +23,11 @@ import numpy as np
 from odmd_bench.data.registry import Benchmark, check_split, get_benchmark
 from odmd_bench.errors import UsageError
 from odmd_bench.evaluation.coverage import check_sets, nonpositive_warning
+from odmd_bench.evaluation.kinds import MAX_ABS_DEPTH, NONFINITE, OUT_OF_RANGE
 from odmd_bench.evaluation.predictions import format_predictions
-from odmd_bench.evaluation.problems import (
-    MAX_ABS_DEPTH,
-    NONFINITE,
-    OUT_OF_RANGE,
-    SHOWN,
-    Problems,
-    closest,
-    show,
-)
 from odmd_bench.evaluation.result import EvaluationResult, Predictions
 from odmd_bench.evaluation.scoring import score
+from odmd_bench.inputs.problems import SHOWN, Problems, closest, show
 
 
 def _located(problems: Problems, kind: str, s: str, values: np.ndarray, where: np.ndarray) -> None:

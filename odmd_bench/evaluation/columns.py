@@ -5,7 +5,8 @@ from __future__ import annotations
 import difflib
 import re
 
-from odmd_bench.evaluation.problems import Problems, closest, plural, show
+from odmd_bench.inputs.formats import SEQUENCE_COLUMNS
+from odmd_bench.inputs.problems import Problems, closest, plural, show
 
 #: Columns every predictions file must have.
 REQUIRED_COLUMNS: tuple[str, ...] = ("split", "set", "index", "depth")
@@ -63,16 +64,13 @@ def check_header(header: list[str], problems: Problems) -> dict[str, int] | None
             if sep in header[0]:
                 problems.add(f"the header {show(header[0])} seems to use {name} as separator; use commas")
                 break
-    if {"sequence", "observation"} <= set(cols):
-        from odmd_bench.data.sequence_rows import REQUIRED_COLUMNS as SEQUENCE_COLUMNS
-
-        if set(SEQUENCE_COLUMNS) <= set(cols):
-            problems.add(
-                "this is a sequences file (boxes and camera motion for `odmd-bench predict`), not "
-                "predictions: estimate its depths with `odmd-bench predict FILE --method NAME "
-                "--image-size W H` (it prints their error where the file gives true depths); "
-                "evaluate scores predictions for a benchmark's sets"
-            )
+    if {"sequence", "observation"} <= set(cols) and set(SEQUENCE_COLUMNS) <= set(cols):
+        problems.add(
+            "this is a sequences file (boxes and camera motion for `odmd-bench predict`), not "
+            "predictions: estimate its depths with `odmd-bench predict FILE --method NAME "
+            "--image-size W H` (it prints their error where the file gives true depths); "
+            "evaluate scores predictions for a benchmark's sets"
+        )
     listed = ", ".join(show(h) for h in header[:_HEADER_SHOWN])
     if len(header) > _HEADER_SHOWN:
         listed += f", ... ({len(header) - _HEADER_SHOWN} more)"

@@ -33,7 +33,7 @@ import numpy as np
 from odmd_bench.errors import UsageError, ValidationError
 from odmd_bench.evaluation.result import EvaluationResult
 from odmd_bench.evaluation.scoring import evaluate
-from odmd_bench.evaluation.source import Source
+from odmd_bench.inputs.source import Source
 
 A_BETTER = "A better"
 B_BETTER = "B better"

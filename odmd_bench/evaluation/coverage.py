@@ -18,8 +18,8 @@ from odmd_bench.data.manifests import pinned_sizes
 from odmd_bench.data.registry import Benchmark, get_benchmark
 from odmd_bench.errors import UsageError
 from odmd_bench.evaluation.parse import ParsedPredictions
-from odmd_bench.evaluation.problems import SHOWN, Problems, clip, closest
 from odmd_bench.evaluation.result import Predictions
+from odmd_bench.inputs.problems import SHOWN, Problems, clip, closest
 
 
 def check_sets(sets: Sequence[str], bench: Benchmark) -> tuple[str, ...]:

@@ -24,9 +24,10 @@ import numpy as np
 from odmd_bench.data.registry import BENCHMARKS, DEFAULT_BENCHMARK, get_benchmark
 from odmd_bench.errors import ValidationError
 from odmd_bench.evaluation.columns import check_header, single_value
-from odmd_bench.evaluation.problems import SHOWN, Problems, closest, show
-from odmd_bench.evaluation.rows import Rows, decode, records
-from odmd_bench.evaluation.source import Source, read_source
+from odmd_bench.evaluation.rows import Rows
+from odmd_bench.inputs.problems import SHOWN, Problems, closest, show
+from odmd_bench.inputs.records import decode, records
+from odmd_bench.inputs.source import Source, read_source
 
 
 @dataclass(frozen=True)
@@ -77,7 +78,7 @@ def parse_predictions(
 
     Args:
         source: a path, the file's bytes, or a binary file object (gzip is recognised);
-            at most :data:`~odmd_bench.evaluation.source.MAX_PREDICTIONS_BYTES` are read.
+            at most :data:`~odmd_bench.inputs.source.MAX_PREDICTIONS_BYTES` are read.
         name: how messages and provenance name the file (default: the path).
         benchmark: the benchmark the file is for. Default: its ``benchmark`` column, else
             ``odmd-v1``; a column that says otherwise is a problem.

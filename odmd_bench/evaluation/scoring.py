@@ -33,10 +33,10 @@ from odmd_bench.evaluation.columns import OPTIONAL_COLUMNS, REQUIRED_COLUMNS
 from odmd_bench.evaluation.coverage import check_coverage, check_sets
 from odmd_bench.evaluation.metrics import all_sets_mean, set_metrics
 from odmd_bench.evaluation.parse import parse_predictions
-from odmd_bench.evaluation.problems import SHOWN
 from odmd_bench.evaluation.result import EvaluationResult, Predictions
-from odmd_bench.evaluation.source import Source
 from odmd_bench.evaluation.twin import twin_fit
+from odmd_bench.inputs.problems import SHOWN
+from odmd_bench.inputs.source import Source
 
 __all__ = [
     "OPTIONAL_COLUMNS",

@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING
 from odmd_bench.data.atomic import atomic_texts
 from odmd_bench.documents import MAX_DOCUMENT_BYTES, DocumentError, load_document
 from odmd_bench.errors import UsageError, ValidationError
-from odmd_bench.evaluation.source import MAX_PREDICTIONS_BYTES, read_source
+from odmd_bench.inputs.source import MAX_PREDICTIONS_BYTES, read_source
 from odmd_bench.leaderboard.entry import ENTRY_FILES, Entry, validate_meta
 
 if TYPE_CHECKING:
@@ -165,7 +165,7 @@ def read_predictions_bytes(path: Path) -> bytes:
     """The predictions CSV's bytes, decompressed when gzip-compressed.
 
     Read without following a link (:func:`read_capped`), then as the evaluator reads any
-    input (:func:`~odmd_bench.evaluation.source.read_source`: gzip, the size cap).
+    input (:func:`~odmd_bench.inputs.source.read_source`: gzip, the size cap).
 
     Raises:
         ValidationError: When it cannot be read, is a link, or is larger than

@@ -1,8 +1,9 @@
-"""Problems found while validating predictions, grouped by kind, counted and located.
+"""Problems found while validating input, grouped by kind, counted and located.
 
 Every stage of the evaluation pipeline (:mod:`~odmd_bench.evaluation.parse`,
 :mod:`~odmd_bench.evaluation.coverage`, :mod:`~odmd_bench.evaluation.arrays`) adds to one
-:class:`Problems`, so that a file with several faults is refused once, naming them all.
+:class:`Problems`, so that a file with several faults is refused once, naming them all;
+the sequences reader (:mod:`odmd_bench.predict.sequences`) reports the same way.
 Texts are bounded: a value is shown by :func:`show` (at most 40 characters), a line of a
 report by :data:`MAX_LINE_CHARS`, and a report by :data:`MAX_KINDS` kinds, so a 100 KB
 garbage line is never echoed.
@@ -24,14 +25,6 @@ SHOWN = 5
 MAX_LINE_CHARS = 400
 #: The most kinds of problem a report lists; the rest are counted in one line.
 MAX_KINDS = 20
-
-# Kinds shared by the CSV reader and the array entry point.
-NONFINITE = "depth is NaN or infinite"
-TOO_LARGE = "depth is too large to be a finite float64"
-#: Estimates beyond this magnitude (metres) are refused: no scene is that deep, and the
-#: squares summed for the standard deviation of their errors could overflow float64.
-MAX_ABS_DEPTH = 1e12
-OUT_OF_RANGE = f"depth is out of range (|depth| > {MAX_ABS_DEPTH:.0e} m, where errors can overflow)"
 
 
 def clip(text: str, limit: int = MAX_LINE_CHARS) -> str:

@@ -1,10 +1,10 @@
-"""The rows of a sequences CSV (:mod:`odmd_bench.data.sequences`): parsed, checked, grouped.
+"""The rows of a sequences CSV (:mod:`odmd_bench.predict.sequences`): parsed, checked, grouped.
 
 Two readers give the same :class:`Rows`: the pandas C parser (vectorised) for a
 well-formed file, after byte-level checks, and a row-by-row reader with :mod:`csv` that
 locates each problem, for anything else. Then every rule on cell values is checked
 vectorised, and the rows are grouped into sequences ordered by observation. Every
-problem goes to one :class:`~odmd_bench.evaluation.problems.Problems`, located by line.
+problem goes to one :class:`~odmd_bench.inputs.problems.Problems`, located by line.
 """
 
 from __future__ import annotations
@@ -18,23 +18,10 @@ from typing import Any
 
 import numpy as np
 
-from odmd_bench.evaluation.problems import SHOWN, Problems, show
-from odmd_bench.evaluation.rows import CsvSyntaxError, csv_records
-
-#: Columns every sequences file must have, in the order files are written.
-REQUIRED_COLUMNS: tuple[str, ...] = (
-    "sequence",
-    "observation",
-    "x1",
-    "y1",
-    "x2",
-    "y2",
-    "cam_x",
-    "cam_y",
-    "cam_z",
-)
-#: Columns read when present; any other column is ignored.
-OPTIONAL_COLUMNS: tuple[str, ...] = ("depth",)
+from odmd_bench.inputs.formats import OPTIONAL_SEQUENCE_COLUMNS as OPTIONAL_COLUMNS
+from odmd_bench.inputs.formats import SEQUENCE_COLUMNS as REQUIRED_COLUMNS
+from odmd_bench.inputs.problems import SHOWN, Problems, show
+from odmd_bench.inputs.records import CsvSyntaxError, csv_records
 
 _BOX = ("x1", "y1", "x2", "y2")
 _CAM = ("cam_x", "cam_y", "cam_z")

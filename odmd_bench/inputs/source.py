@@ -7,7 +7,7 @@ file comes near it, while ``/dev/zero``, a runaway file or a gzip bomb is refuse
 reading at most the cap plus one byte. gzip is recognised by its magic bytes, whatever
 the name, so ``.csv.gz`` files and compressed stdin are read alike.
 
-The sequences reader (:func:`odmd_bench.data.sequences.read_sequences`) reads its files
+The sequences reader (:func:`odmd_bench.predict.sequences.read_sequences`) reads its files
 here too, uncapped and under its own title.
 """
 

@@ -28,7 +28,7 @@ line); anything else (quoted cells, blank lines, a problem) goes to a row-by-row
 that locates each problem, with Python's ``float``. The two gave the same float for each
 of 4.4 million decimal strings of 1 to 20 digits tried, and ``repr``-written numbers come
 back exactly. A UTF-8 byte-order mark, CRLF line ends, UTF-16 with a byte-order mark and
-gzip-compressed files are accepted (:mod:`odmd_bench.data.sequence_rows` reads the rows).
+gzip-compressed files are accepted (:mod:`odmd_bench.predict.sequence_rows` reads the rows).
 """
 
 from __future__ import annotations
@@ -43,7 +43,11 @@ import numpy as np
 
 from odmd_bench.data.examples import Examples
 from odmd_bench.data.pixels import boxes_to_corners, from_pixels, image_size_of, intrinsics_of
-from odmd_bench.data.sequence_rows import (
+from odmd_bench.errors import UsageError, ValidationError
+from odmd_bench.inputs.problems import Problems
+from odmd_bench.inputs.records import decode
+from odmd_bench.inputs.source import read_source, stdin_bytes
+from odmd_bench.predict.sequence_rows import (
     OPTIONAL_COLUMNS,
     REQUIRED_COLUMNS,
     careful_rows,
@@ -52,10 +56,6 @@ from odmd_bench.data.sequence_rows import (
     group,
     header_columns,
 )
-from odmd_bench.errors import UsageError, ValidationError
-from odmd_bench.evaluation.problems import Problems
-from odmd_bench.evaluation.rows import decode
-from odmd_bench.evaluation.source import read_source, stdin_bytes
 
 _TITLE = "{name} cannot be read as sequences"
 

@@ -1,4 +1,4 @@
-"""A registered method run on a user's own sequences (:mod:`odmd_bench.data.sequences`).
+"""A registered method run on a user's own sequences (:mod:`odmd_bench.predict.sequences`).
 
 :func:`predict_sequences` gives each sequence's depth at its last observation, choosing
 observations evenly for a method built for a fixed number of them
@@ -16,10 +16,10 @@ from typing import Any
 import numpy as np
 
 from odmd_bench.data.examples import Examples
-from odmd_bench.data.sequences import Sequences, number_cell, text_cell
 from odmd_bench.errors import DataError, UsageError
 from odmd_bench.evaluation.metrics import percent_error
-from odmd_bench.evaluation.problems import SHOWN, show
+from odmd_bench.inputs.problems import SHOWN, show
+from odmd_bench.predict.sequences import Sequences, number_cell, text_cell
 
 
 def select_observations(examples: Examples, count: int) -> Examples:
