@@ -104,13 +104,16 @@ def _score_all(
             )
             continue
         first = key
-        check_set(get_benchmark(parsed.benchmark), set_name)
+        bench = get_benchmark(parsed.benchmark)
+        check_set(bench, set_name)
         if key not in loaded:
-            loaded[key] = load_split(parsed.split, parsed.benchmark, data_dir, [set_name])
+            loaded[key] = load_split(parsed.split, bench, data_dir, [set_name])
         examples = loaded[key]
         try:
-            predictions = check_coverage(parsed, {set_name: len(examples[set_name])}, sets=[set_name])
-            results.append(score(predictions, examples))
+            predictions = check_coverage(
+                parsed, {set_name: len(examples[set_name])}, sets=[set_name], bench=bench
+            )
+            results.append(score(predictions, examples, bench=bench))
         except ValidationError as e:
             problems += [f"{e.message}: {q}" for q in e.problems] or [e.message]
             continue

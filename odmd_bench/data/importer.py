@@ -29,7 +29,7 @@ from odmd_bench.data.examples import Examples, set_problems
 from odmd_bench.data.hashing import group_attrs
 from odmd_bench.data.io import set_names, write_sets
 from odmd_bench.data.manifests import known_originals
-from odmd_bench.data.registry import get_benchmark, set_file
+from odmd_bench.data.registry import Benchmark, get_benchmark, set_file
 from odmd_bench.data.store import pin_problem, read_checked
 from odmd_bench.errors import DataError, ImportRefused, StorageError, show_value
 
@@ -343,13 +343,14 @@ def import_release(
         raise ImportRefused(f"{source}: no files of benchmark {benchmark!r}")
     written: dict[tuple[str, str], dict[str, str]] = {}
     for (bench, split), sets in sorted(grouped.items()):
-        path = set_file(bench, split, data_dir)
+        b = get_benchmark(bench)
+        path = set_file(b, split, data_dir)
         for p in clean_stale_temps(path):
             say(f"removed a dead writer's temporary file {p}")
         with locked(path):
-            merged = _kept_sets(path, bench, split, sets, data_dir, say)
+            merged = _kept_sets(path, b, split, sets, data_dir, say)
             merged.update(sets)
-            order = [s for s in get_benchmark(bench).sets if s in merged]
+            order = [s for s in b.sets if s in merged]
             written[(bench, split)] = write_sets(
                 path,
                 {s: merged[s] for s in order},
@@ -363,7 +364,7 @@ def import_release(
 
 def _kept_sets(
     path: Path,
-    bench: str,
+    bench: Benchmark,
     split: str,
     new: dict[str, Examples],
     data_dir: str | os.PathLike[str] | None,
@@ -380,12 +381,12 @@ def _kept_sets(
         say(f"{path} cannot be read and is replaced; only the sets imported now will be in it ({e.message})")
         return {}
     kept: dict[str, Examples] = {}
-    known = set(get_benchmark(bench).sets)
+    known = set(bench.sets)
     for name in names:
         if name in new:
             continue
         if name not in known:
-            say(f"{path}: dropped the set {name!r}, which {bench} does not have")
+            say(f"{path}: dropped the set {name!r}, which {bench.name} does not have")
             continue
         try:
             kept[name] = read_checked(path, bench, split, name, data_dir, fix="import it again")

@@ -9,6 +9,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
+from odmd_bench.data.registry import Benchmark
 from odmd_bench.errors import DataError
 
 
@@ -117,7 +118,7 @@ def read_manifest(name: str) -> dict[str, Any]:
     return data
 
 
-def pinned_sizes(benchmark: str, split: str) -> dict[str, int]:
+def pinned_sizes(benchmark: str | Benchmark, split: str) -> dict[str, int]:
     """``{set: number of examples}`` of one split as the benchmark's manifest pins them.
 
     Empty for a split without a manifest entry.
@@ -126,7 +127,9 @@ def pinned_sizes(benchmark: str, split: str) -> dict[str, int]:
         DataError: the manifest is missing or damaged.
     """
     try:
-        entries = read_manifest(benchmark)["splits"][split]
+        entries = read_manifest(benchmark.name if isinstance(benchmark, Benchmark) else benchmark)["splits"][
+            split
+        ]
     except KeyError:
         return {}
     return {s: int(e["n"]) for s, e in entries.items()}

@@ -67,6 +67,14 @@ def get_benchmark(name: str) -> Benchmark:
         ) from None
 
 
+def resolve_benchmark(benchmark: str | Benchmark) -> Benchmark:
+    """``benchmark`` itself when it is a :class:`Benchmark`, else :func:`get_benchmark` of the name.
+
+    The entry points take either, resolve it once here and pass the object down.
+    """
+    return benchmark if isinstance(benchmark, Benchmark) else get_benchmark(benchmark)
+
+
 def check_split(split: str) -> str:
     """``split`` if it is a known split, else a :class:`UsageError` naming the valid ones."""
     if split not in SPLITS:
@@ -105,18 +113,18 @@ def resolve_data_dir(data_dir: str | os.PathLike[str] | None) -> Path:
     return Path(data_dir).expanduser() if data_dir is not None else default_data_dir()
 
 
-def rebuild_command(benchmark: str, data_dir: str | os.PathLike[str] | None = None) -> str:
+def rebuild_command(benchmark: str | Benchmark, data_dir: str | os.PathLike[str] | None = None) -> str:
     """The command that (re)builds the files of ``benchmark`` in ``data_dir``."""
-    b = get_benchmark(benchmark)
+    b = resolve_benchmark(benchmark)
     where = f" --data-dir {data_dir}" if data_dir is not None else ""
     if b.generated:
-        name = "" if benchmark == DEFAULT_BENCHMARK else f" --benchmark {benchmark}"
+        name = "" if b.name == DEFAULT_BENCHMARK else f" --benchmark {b.name}"
         return f"odmd-bench generate{name}{where}"
-    return f"odmd-bench import PATH/TO/odmd-original --benchmark {benchmark}{where}"
+    return f"odmd-bench import PATH/TO/odmd-original --benchmark {b.name}{where}"
 
 
-def set_file(benchmark: str, split: str, data_dir: str | os.PathLike[str] | None = None) -> Path:
+def set_file(benchmark: str | Benchmark, split: str, data_dir: str | os.PathLike[str] | None = None) -> Path:
     """Path of the HDF5 file holding ``split`` of ``benchmark``: ``DATA/<benchmark>/<split>.h5``."""
-    get_benchmark(benchmark)
+    b = resolve_benchmark(benchmark)
     check_split(split)
-    return resolve_data_dir(data_dir) / benchmark / f"{split}.h5"
+    return resolve_data_dir(data_dir) / b.name / f"{split}.h5"

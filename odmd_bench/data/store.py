@@ -30,10 +30,11 @@ from odmd_bench.data.manifests import read_manifest, splits_dir
 from odmd_bench.data.registry import (
     BENCHMARKS,
     SPLITS,
+    Benchmark,
     check_set,
     check_split,
-    get_benchmark,
     rebuild_command,
+    resolve_benchmark,
     set_file,
 )
 from odmd_bench.errors import DataError, MissingDataError, UsageError
@@ -43,34 +44,33 @@ log = logging.getLogger("odmd_bench")
 Progress = Callable[[str], None]
 
 
-def manifest(benchmark: str) -> dict[str, Any]:
+def manifest(benchmark: str | Benchmark) -> dict[str, Any]:
     """The pinned manifest of a benchmark (``splits/<benchmark>.json``)."""
-    get_benchmark(benchmark)
-    return read_manifest(benchmark)
+    return read_manifest(resolve_benchmark(benchmark).name)
 
 
-def pin(benchmark: str, split: str, set_name: str) -> dict[str, Any]:
+def pin(benchmark: str | Benchmark, split: str, set_name: str) -> dict[str, Any]:
     """The manifest entry of one set: ``n``, ``sha256``, ``meta_sha256`` and its source."""
+    b = resolve_benchmark(benchmark)
     try:
-        return dict(manifest(benchmark)["splits"][split][set_name])
+        return dict(manifest(b)["splits"][split][set_name])
     except KeyError:
-        raise DataError(f"splits/{benchmark}.json pins no set {split} {set_name}") from None
+        raise DataError(f"splits/{b.name}.json pins no set {split} {set_name}") from None
 
 
-def build_set(benchmark: str, split: str, set_name: str) -> Examples:
+def build_set(benchmark: str | Benchmark, split: str, set_name: str) -> Examples:
     """Make one set of a generated benchmark from its manifest entry.
 
     The set is not yet checked against the pins; :func:`ensure_generated` does that.
     """
-    if not get_benchmark(benchmark).generated:
-        raise DataError(
-            f"benchmark {benchmark!r} is imported, not generated: run `{rebuild_command(benchmark)}`"
-        )
-    entry = pin(benchmark, split, set_name)
+    b = resolve_benchmark(benchmark)
+    if not b.generated:
+        raise DataError(f"benchmark {b.name!r} is imported, not generated: run `{rebuild_command(b)}`")
+    entry = pin(b, split, set_name)
     if entry["kind"] == "generated":
         if entry["generator_version"] != GENERATOR_VERSION:
             raise DataError(
-                f"{benchmark} {split} {set_name} needs generator version {entry['generator_version']}, "
+                f"{b.name} {split} {set_name} needs generator version {entry['generator_version']}, "
                 f"this package has version {GENERATOR_VERSION}"
             )
         ex = generate(entry["n"], entry["preset"], entry["perturbation"], rng=entry["seed"])
@@ -82,14 +82,12 @@ def build_set(benchmark: str, split: str, set_name: str) -> Examples:
             fix="the package's own files are damaged: reinstall odmd-bench",
         )
     else:
-        raise DataError(
-            f"manifest entry for {benchmark} {split} {set_name} has unknown kind {entry['kind']!r}"
-        )
-    ex.attrs.update(benchmark=benchmark, split=split, set=set_name)
+        raise DataError(f"manifest entry for {b.name} {split} {set_name} has unknown kind {entry['kind']!r}")
+    ex.attrs.update(benchmark=b.name, split=split, set=set_name)
     return ex
 
 
-def is_pinned(benchmark: str, attrs: Mapping[str, Any]) -> bool:
+def is_pinned(benchmark: str | Benchmark, attrs: Mapping[str, Any]) -> bool:
     """Whether a loaded set of ``benchmark`` is its pinned version.
 
     Loading refuses a set that differs from its pins (:func:`pin_problem`), so this is
@@ -98,7 +96,7 @@ def is_pinned(benchmark: str, attrs: Mapping[str, Any]) -> bool:
     ``--allow-unknown`` or written by other means, whose scores do not compare with the
     paper's.
     """
-    if get_benchmark(benchmark).generated:
+    if resolve_benchmark(benchmark).generated:
         return True
     from odmd_bench.data.manifests import known_originals
 
@@ -106,7 +104,7 @@ def is_pinned(benchmark: str, attrs: Mapping[str, Any]) -> bool:
     return source is not None and str(source) in known_originals()
 
 
-def pin_problem(benchmark: str, split: str, set_name: str, attrs: dict[str, Any]) -> str | None:
+def pin_problem(benchmark: str | Benchmark, split: str, set_name: str, attrs: dict[str, Any]) -> str | None:
     """A problem line if a set with these attributes is not its pinned version, else None.
 
     ``attrs`` are the set's stored attributes (``content_sha256`` and ``meta_sha256``
@@ -117,43 +115,45 @@ def pin_problem(benchmark: str, split: str, set_name: str, attrs: dict[str, Any]
     ``--allow-unknown`` or written by other means are not pinned, and are checked
     against their own hashes only.
     """
-    if not is_pinned(benchmark, attrs):
+    b = resolve_benchmark(benchmark)
+    if not is_pinned(b, attrs):
         return None
-    entry = pin(benchmark, split, set_name)
+    entry = pin(b, split, set_name)
     source = attrs.get("source_sha256")
-    if not get_benchmark(benchmark).generated and source != entry["source_sha256"]:
+    if not b.generated and source != entry["source_sha256"]:
         from odmd_bench.data.manifests import known_originals
 
         return (
-            f"{benchmark} {split} {set_name}: the set is the conversion of "
+            f"{b.name} {split} {set_name}: the set is the conversion of "
             f"{known_originals()[str(source)]['path']}, not of the file pinned for it in "
-            f"splits/{benchmark}.json"
+            f"splits/{b.name}.json"
         )
     for key, what in (("sha256", "content_sha256"), ("meta_sha256", "meta_sha256")):
         got = str(attrs.get(what))
         if got != entry[key]:
             label = "content" if key == "sha256" else "metadata"
             return (
-                f"{benchmark} {split} {set_name}: {label} SHA-256 {got[:16]}... differs from "
-                f"the pinned {entry[key][:16]}... in splits/{benchmark}.json"
+                f"{b.name} {split} {set_name}: {label} SHA-256 {got[:16]}... differs from "
+                f"the pinned {entry[key][:16]}... in splits/{b.name}.json"
             )
     return None
 
 
-def check_against_manifest(benchmark: str, split: str, set_name: str, digest: str) -> str | None:
+def check_against_manifest(benchmark: str | Benchmark, split: str, set_name: str, digest: str) -> str | None:
     """A problem line if ``digest`` is not the pinned content hash of that set, else None."""
-    entry = pin(benchmark, split, set_name)
+    b = resolve_benchmark(benchmark)
+    entry = pin(b, split, set_name)
     if entry["sha256"] != digest:
         return (
-            f"{benchmark} {split} {set_name}: content SHA-256 {digest[:16]}... differs from "
-            f"the pinned {entry['sha256'][:16]}... in splits/{benchmark}.json"
+            f"{b.name} {split} {set_name}: content SHA-256 {digest[:16]}... differs from "
+            f"the pinned {entry['sha256'][:16]}... in splits/{b.name}.json"
         )
     return None
 
 
 def read_checked(
     path: Path,
-    benchmark: str,
+    benchmark: str | Benchmark,
     split: str,
     set_name: str,
     data_dir: str | os.PathLike[str] | None = None,
@@ -169,28 +169,29 @@ def read_checked(
             message gives the command that rebuilds it (``StorageError`` for an OS
             failure, ``MissingDataError`` for a missing file).
     """
-    fix = fix or f"run `{rebuild_command(benchmark, data_dir)}` to rebuild it"
-    ex = read_set(path, set_name, expect={"benchmark": benchmark, "split": split}, fix=fix)
-    problem = pin_problem(benchmark, split, set_name, ex.attrs)
+    b = resolve_benchmark(benchmark)
+    fix = fix or f"run `{rebuild_command(b, data_dir)}` to rebuild it"
+    ex = read_set(path, set_name, expect={"benchmark": b.name, "split": split}, fix=fix)
+    problem = pin_problem(b, split, set_name, ex.attrs)
     if problem:
         raise DataError(f"{path} is stale or altered; {fix}", [problem])
     return ex
 
 
-def _why_not_right(path: Path, benchmark: str, split: str) -> str | None:
+def _why_not_right(path: Path, b: Benchmark, split: str) -> str | None:
     """None if ``path`` holds every set of the split with its pins, else why not."""
     if not path.exists() and not path.is_symlink():
         return "missing"
     try:
-        for s in get_benchmark(benchmark).sets:
-            read_checked(path, benchmark, split, s, fix="it is rebuilt")
+        for s in b.sets:
+            read_checked(path, b, split, s, fix="it is rebuilt")
     except DataError as e:
         return e.render()
     return None
 
 
 def ensure_generated(
-    benchmark: str = "odmd-v1",
+    benchmark: str | Benchmark = "odmd-v1",
     splits: Iterable[str] = ("val", "test"),
     data_dir: str | os.PathLike[str] | None = None,
     *,
@@ -214,50 +215,48 @@ def ensure_generated(
         StorageError: the file cannot be written (the message says why and what to do).
     """
     say = progress or log.info
-    b = get_benchmark(benchmark)
+    b = resolve_benchmark(benchmark)
     if not b.generated:
-        raise DataError(
-            f"benchmark {benchmark!r} is imported, not generated: run `{rebuild_command(benchmark)}`"
-        )
+        raise DataError(f"benchmark {b.name!r} is imported, not generated: run `{rebuild_command(b)}`")
     out: dict[str, dict[str, Any]] = {}
     for split in splits:
         check_split(split)
-        path = set_file(benchmark, split, data_dir)
+        path = set_file(b, split, data_dir)
         for p in clean_stale_temps(path):
             say(f"removed a dead writer's temporary file {p}")
-        why = None if force else _why_not_right(path, benchmark, split)
+        why = None if force else _why_not_right(path, b, split)
         if not force and why is None:
-            out[split] = _reused(path, benchmark, split, say)
+            out[split] = _reused(path, b, split, say)
             continue
         with locked(path):
             if not force:  # another process may have written it while we waited
-                why = _why_not_right(path, benchmark, split)
+                why = _why_not_right(path, b, split)
                 if why is None:
-                    out[split] = _reused(path, benchmark, split, say)
+                    out[split] = _reused(path, b, split, say)
                     continue
             if why not in (None, "missing"):
                 say(f"replacing {path}: {why}")
-            out[split] = _write_generated(path, benchmark, split, say)
+            out[split] = _write_generated(path, b, split, say)
             out[split]["replaced"] = None if why == "missing" else (why or "--force")
     return out
 
 
-def _reused(path: Path, benchmark: str, split: str, say: Progress) -> dict[str, Any]:
+def _reused(path: Path, b: Benchmark, split: str, say: Progress) -> dict[str, Any]:
     """What :func:`ensure_generated` reports for a file that is already right."""
     say(f"{path}: already up to date")
-    return {"path": path, "reused": True, "sets": _pinned_hashes(benchmark, split), "replaced": None}
+    return {"path": path, "reused": True, "sets": _pinned_hashes(b, split), "replaced": None}
 
 
-def _write_generated(path: Path, benchmark: str, split: str, say: Progress) -> dict[str, Any]:
+def _write_generated(path: Path, b: Benchmark, split: str, say: Progress) -> dict[str, Any]:
     sets: dict[str, Examples] = {}
     digests: dict[str, str] = {}
     problems = []
-    for s in get_benchmark(benchmark).sets:
-        say(f"{benchmark} {split}: making set {s}")
-        ex = build_set(benchmark, split, s)
+    for s in b.sets:
+        say(f"{b.name} {split}: making set {s}")
+        ex = build_set(b, split, s)
         attrs = group_attrs(ex, s, content_sha256(set_arrays(ex)))
         digests[s] = attrs["content_sha256"]
-        problem = pin_problem(benchmark, split, s, attrs)
+        problem = pin_problem(b, split, s, attrs)
         if problem:
             problems.append(problem)
         sets[s] = ex
@@ -268,31 +267,30 @@ def _write_generated(path: Path, benchmark: str, split: str, say: Progress) -> d
             "a version bump",
             problems,
         )
-    write_sets(path, sets, file_attrs={"benchmark": benchmark, "split": split}, digests=digests)
-    why = _why_not_right(path, benchmark, split)
+    write_sets(path, sets, file_attrs={"benchmark": b.name, "split": split}, digests=digests)
+    why = _why_not_right(path, b, split)
     if why is not None:
         raise DataError(f"{path}: written file failed verification: {why}")
     say(f"{path}: written and verified")
-    return {"path": path, "reused": False, "sets": _pinned_hashes(benchmark, split)}
+    return {"path": path, "reused": False, "sets": _pinned_hashes(b, split)}
 
 
-def _pinned_hashes(benchmark: str, split: str) -> dict[str, str]:
+def _pinned_hashes(b: Benchmark, split: str) -> dict[str, str]:
     """The pinned content hash of every set of a split (what a verified file holds)."""
-    return {s: pin(benchmark, split, s)["sha256"] for s in get_benchmark(benchmark).sets}
+    return {s: pin(b, split, s)["sha256"] for s in b.sets}
 
 
-def _path_for(split: str, benchmark: str, data_dir: str | os.PathLike[str] | None) -> Path:
-    b = get_benchmark(benchmark)
+def _path_for(split: str, b: Benchmark, data_dir: str | os.PathLike[str] | None) -> Path:
     check_split(split)
-    path = set_file(benchmark, split, data_dir)
+    path = set_file(b, split, data_dir)
     if not path.exists() and not path.is_symlink():
         if b.generated:
-            log.warning("%s is missing; generating %s %s first", path, benchmark, split)
-            ensure_generated(benchmark, [split], data_dir)
+            log.warning("%s is missing; generating %s %s first", path, b.name, split)
+            ensure_generated(b, [split], data_dir)
         else:
             raise MissingDataError(
-                f"{benchmark} {split} is not in the data folder ({path} is missing); it is "
-                f"imported, not generated: run `{rebuild_command(benchmark, data_dir)}` "
+                f"{b.name} {split} is not in the data folder ({path} is missing); it is "
+                f"imported, not generated: run `{rebuild_command(b, data_dir)}` "
                 "(PATH/TO/odmd-original: the original release's data folder) first",
                 filename=str(path),
             )
@@ -302,7 +300,7 @@ def _path_for(split: str, benchmark: str, data_dir: str | os.PathLike[str] | Non
 def load(
     split: str,
     set_name: str,
-    benchmark: str = "odmd-v1",
+    benchmark: str | Benchmark = "odmd-v1",
     data_dir: str | os.PathLike[str] | None = None,
 ) -> Examples:
     """The examples of one set, read from the data folder and verified.
@@ -321,32 +319,34 @@ def load(
         ((3000, 10, 4), 'odmd-v1', 'robot')
         >>> tmp.cleanup()
     """
-    if split not in SPLITS and set_name in SPLITS and split in getattr(BENCHMARKS.get(benchmark), "sets", ()):
+    known = benchmark if isinstance(benchmark, Benchmark) else BENCHMARKS.get(benchmark)
+    if split not in SPLITS and set_name in SPLITS and split in getattr(known, "sets", ()):
         # load("robot", "test"): otherwise told only that "test" is no set
-        tail = "" if benchmark == "odmd-v1" else f", {benchmark!r}"
+        name = getattr(known, "name", benchmark)
+        tail = "" if name == "odmd-v1" else f", {name!r}"
         raise UsageError(
             f"load({split!r}, {set_name!r}): the split comes first, then the set: "
             f"load({set_name!r}, {split!r}{tail})"
         )
-    b = get_benchmark(benchmark)
+    b = resolve_benchmark(benchmark)
     check_set(b, set_name)
-    path = _path_for(split, benchmark, data_dir)
-    return read_checked(path, benchmark, split, set_name, data_dir)
+    path = _path_for(split, b, data_dir)
+    return read_checked(path, b, split, set_name, data_dir)
 
 
 def load_split(
     split: str,
-    benchmark: str = "odmd-v1",
+    benchmark: str | Benchmark = "odmd-v1",
     data_dir: str | os.PathLike[str] | None = None,
     sets: Iterable[str] | None = None,
 ) -> dict[str, Examples]:
     """``{set: examples}`` for the sets (default: all) of one split of a benchmark."""
-    if split not in SPLITS and benchmark in SPLITS and split in BENCHMARKS:
+    if split not in SPLITS and isinstance(benchmark, str) and benchmark in SPLITS and split in BENCHMARKS:
         # load_split("odmd-v1", "test"): otherwise told only that "test" is no benchmark
         raise UsageError(
             f"load_split({split!r}, {benchmark!r}): the split comes first, then the benchmark: "
             f"load_split({benchmark!r}, {split!r})"
         )
-    b = get_benchmark(benchmark)
+    b = resolve_benchmark(benchmark)
     names = list(sets) if sets is not None else list(b.sets)
-    return {s: load(split, s, benchmark, data_dir) for s in names}
+    return {s: load(split, s, b, data_dir) for s in names}

@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from odmd_bench.data.registry import Benchmark, check_split, get_benchmark
+from odmd_bench.data.registry import Benchmark, check_split, resolve_benchmark
 from odmd_bench.errors import UsageError
 from odmd_bench.evaluation.coverage import check_sets, nonpositive_warning
 from odmd_bench.evaluation.kinds import MAX_ABS_DEPTH, NONFINITE, OUT_OF_RANGE
@@ -81,7 +81,7 @@ def _set_names(
 
 
 def score_depths(
-    benchmark: str,
+    benchmark: str | Benchmark,
     split: str,
     depths: Mapping[str, Any],
     *,
@@ -122,12 +122,12 @@ def score_depths(
     """
     from odmd_bench.data.store import load_split
 
-    bench = get_benchmark(benchmark)
+    bench = resolve_benchmark(benchmark)
     check_split(split)
     scope = check_sets(sets, bench) if sets is not None else bench.sets
     if not isinstance(depths, Mapping):
         raise UsageError(f"depths must be a mapping {{set: (N,) array}}, got {type(depths).__name__}")
-    examples = load_split(split, bench.name, data_dir, list(scope) if sets is not None else None)
+    examples = load_split(split, bench, data_dir, list(scope) if sets is not None else None)
     problems = Problems(unit="value")
     _set_names(depths, bench, scope, problems)
     checked = {s: _check_array(s, depths[s], len(examples[s]), problems) for s in scope if s in depths}
@@ -154,4 +154,4 @@ def score_depths(
         n_rows=text.count("\n") - 1,
         warnings=tuple(warnings),
     )
-    return score(predictions, examples)
+    return score(predictions, examples, bench=bench)

@@ -15,7 +15,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from odmd_bench.data.manifests import pinned_sizes
-from odmd_bench.data.registry import Benchmark, get_benchmark
+from odmd_bench.data.registry import Benchmark, resolve_benchmark
 from odmd_bench.errors import UsageError
 from odmd_bench.evaluation.parse import ParsedPredictions
 from odmd_bench.evaluation.result import Predictions
@@ -57,6 +57,7 @@ def check_coverage(
     *,
     sets: Sequence[str] | None = None,
     board: bool = False,
+    bench: Benchmark | None = None,
 ) -> Predictions:
     """Place parsed estimates by index and check that they cover every example once.
 
@@ -69,6 +70,7 @@ def check_coverage(
             default: every set of the benchmark must be covered.
         board: the file is a leaderboard entry's (a set without rows is not told to
             use ``--sets``, which a board does not have).
+        bench: the benchmark ``parsed.benchmark`` names, when the caller has resolved it.
 
     Returns:
         Validated predictions, ``depths[s][i]`` the estimate of example ``i`` of set ``s``.
@@ -82,7 +84,7 @@ def check_coverage(
         if not problems:  # pragma: no cover - the parser records why
             problems.add("the file's benchmark or split could not be determined")
         raise problems.error(parsed.name)
-    bench = get_benchmark(parsed.benchmark)
+    bench = bench if bench is not None else resolve_benchmark(parsed.benchmark)
     scope = check_sets(sets, bench) if sets is not None else bench.sets
     lacking = [s for s in scope if s not in sizes]
     if lacking:
@@ -90,7 +92,7 @@ def check_coverage(
     code = {n: i for i, n in enumerate(parsed.set_names)}
     size_of = np.full(len(parsed.set_names), -1, dtype=np.int64)
     scoped = np.zeros(len(parsed.set_names), dtype=bool)
-    known = {**pinned_sizes(bench.name, parsed.split), **{s: int(sizes[s]) for s in scope}}
+    known = {**pinned_sizes(bench, parsed.split), **{s: int(sizes[s]) for s in scope}}
     for s, c in code.items():
         size_of[c] = known.get(s, -1)
         scoped[c] = s in scope

@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from odmd_bench.data.registry import BENCHMARKS, DEFAULT_BENCHMARK, get_benchmark
+from odmd_bench.data.registry import BENCHMARKS, DEFAULT_BENCHMARK, Benchmark, resolve_benchmark
 from odmd_bench.errors import ValidationError
 from odmd_bench.evaluation.columns import check_header, single_value
 from odmd_bench.evaluation.rows import Rows
@@ -71,7 +71,7 @@ def parse_predictions(
     source: Source,
     *,
     name: str | None = None,
-    benchmark: str | None = None,
+    benchmark: str | Benchmark | None = None,
     strict: bool = True,
 ) -> ParsedPredictions:
     r"""Parse and check a predictions CSV from its text alone (no data set is read).
@@ -98,8 +98,7 @@ def parse_predictions(
         >>> p.benchmark, p.split, p.set_names, p.depths.tolist()
         ('odmd-v1', 'test', ('robot',), [1.5])
     """
-    if benchmark is not None:
-        get_benchmark(benchmark)
+    bench = resolve_benchmark(benchmark) if benchmark is not None else None
     data, label = read_source(source, name=name)
     title = f"{label} cannot be scored"
     if not data or data.isspace():  # (strip() would copy the bytes)
@@ -127,16 +126,17 @@ def parse_predictions(
         rows.add(line, cells)
     if not rows.n:
         raise ValidationError(title, ["the file has a header but no rows; expected one row per example"])
-    parsed = _finish(rows, header, label, sha256, benchmark)
+    parsed = _finish(rows, header, label, sha256, bench)
     if strict and parsed.problems:
         raise parsed.problems.error(label)
     return parsed
 
 
 def _finish(
-    rows: Rows, header: list[str], label: str, sha256: str, benchmark: str | None
+    rows: Rows, header: list[str], label: str, sha256: str, bench: Benchmark | None
 ) -> ParsedPredictions:
     """Resolve the benchmark and split, check set names and duplicates, build the result."""
+    benchmark = bench.name if bench is not None else None
     problems = rows.fields
     bench_name: str | None
     if "benchmark" in rows.cols:

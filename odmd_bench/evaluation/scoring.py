@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from odmd_bench.data.examples import Examples, set_problems
-from odmd_bench.data.registry import get_benchmark
+from odmd_bench.data.registry import Benchmark, resolve_benchmark
 from odmd_bench.data.store import is_pinned
 from odmd_bench.errors import DataError, ValidationError
 from odmd_bench.evaluation.columns import OPTIONAL_COLUMNS, REQUIRED_COLUMNS
@@ -49,12 +49,15 @@ __all__ = [
 ]
 
 
-def score(predictions: Predictions, examples: Mapping[str, Examples]) -> EvaluationResult:
+def score(
+    predictions: Predictions, examples: Mapping[str, Examples], *, bench: Benchmark | None = None
+) -> EvaluationResult:
     """Score validated predictions against the sets they refer to.
 
     Args:
         predictions: from :func:`~odmd_bench.evaluation.coverage.check_coverage`.
         examples: ``{set: Examples}`` holding at least the sets of ``predictions.depths``.
+        bench: the benchmark ``predictions.benchmark`` names, when the caller has resolved it.
 
     Returns:
         The scores, with provenance.
@@ -105,7 +108,8 @@ def score(predictions: Predictions, examples: Mapping[str, Examples]) -> Evaluat
         "ignored_columns": list(predictions.ignored_columns),
     }
     warnings = tuple(predictions.warnings) + _units_warning(preds, used)
-    unpinned = [s for s in per_set if not is_pinned(predictions.benchmark, used[s].attrs)]
+    bench = bench if bench is not None else resolve_benchmark(predictions.benchmark)
+    unpinned = [s for s in per_set if not is_pinned(bench, used[s].attrs)]
     if unpinned:
         provenance["unpinned_sets"] = unpinned
         warnings += (
@@ -147,7 +151,7 @@ def _units_warning(preds: Mapping[str, np.ndarray], used: Mapping[str, Examples]
 def evaluate(
     path: Source,
     *,
-    benchmark: str | None = None,
+    benchmark: str | Benchmark | None = None,
     data_dir: str | os.PathLike[str] | None = None,
     sets: Sequence[str] | None = None,
     name: str | None = None,
@@ -184,15 +188,17 @@ def evaluate(
     """
     from odmd_bench.data.store import load_split
 
-    if benchmark is not None and sets is not None:
-        check_sets(sets, get_benchmark(benchmark))
-    parsed = parse_predictions(path, name=name, benchmark=benchmark, strict=False)
+    given = resolve_benchmark(benchmark) if benchmark is not None else None
+    if given is not None and sets is not None:
+        check_sets(sets, given)
+    parsed = parse_predictions(path, name=name, benchmark=given, strict=False)
     if parsed.benchmark is None or parsed.split is None:
         raise parsed.problems.error(parsed.name)
-    scope = check_sets(sets, get_benchmark(parsed.benchmark)) if sets is not None else None
-    examples = load_split(parsed.split, parsed.benchmark, data_dir, list(scope) if scope else None)
-    predictions = check_coverage(parsed, {s: len(ex) for s, ex in examples.items()}, sets=sets)
-    result = score(predictions, examples)
+    bench = given if given is not None else resolve_benchmark(parsed.benchmark)
+    scope = check_sets(sets, bench) if sets is not None else None
+    examples = load_split(parsed.split, bench, data_dir, list(scope) if scope else None)
+    predictions = check_coverage(parsed, {s: len(ex) for s, ex in examples.items()}, sets=sets, bench=bench)
+    result = score(predictions, examples, bench=bench)
     if not parsed.benchmark_column:
         fit = twin_fit(result, data_dir)
         if fit is not None and fit.far_better:

@@ -103,12 +103,12 @@ def load_board_data(
 
     b = get_benchmark(benchmark)
     if b.generated:
-        ensure_generated(benchmark, (split,), data_dir)
-        return load_split(split, benchmark, data_dir)
-    if original is not None and not set_file(benchmark, split, data_dir).exists():
+        ensure_generated(b, (split,), data_dir)
+        return load_split(split, b, data_dir)
+    if original is not None and not set_file(b, split, data_dir).exists():
         import_release(original, data_dir, benchmark=benchmark)
     try:
-        return load_split(split, benchmark, data_dir)
+        return load_split(split, b, data_dir)
     except DataError as e:
         if original is None:
             raise DataError(
@@ -116,7 +116,7 @@ def load_board_data(
                 e.problems,
             ) from None
     import_release(original, data_dir, benchmark=benchmark)  # rebuilds what could not be loaded
-    return load_split(split, benchmark, data_dir)
+    return load_split(split, b, data_dir)
 
 
 def score_predictions(data: bytes, entry: Entry, examples: Mapping[str, Examples]) -> EvaluationResult:
