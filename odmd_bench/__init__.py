@@ -8,6 +8,7 @@ Importing the package loads numpy and h5py only; torch is needed by DBox alone.
 (8, 10, 4)
 """
 
+from odmd_bench._version import __version__
 from odmd_bench.data.atomic import atomic_path, atomic_write
 from odmd_bench.data.config import PRESETS, CameraConfig, GeneratorConfig
 from odmd_bench.data.describe import describe
@@ -36,8 +37,6 @@ from odmd_bench.evaluation.result import EvaluationResult
 from odmd_bench.evaluation.scoring import evaluate
 from odmd_bench.predict import predict_sequences
 from odmd_bench.predict.sequences import read_sequences
-
-__version__ = "0.1.0"
 
 __all__ = [
     "BENCHMARKS",

@@ -7,6 +7,7 @@ from typing import Any
 
 import numpy as np
 
+from odmd_bench.data.pixels import pixel_fields
 from odmd_bench.errors import DataError
 
 #: Arrays every set has, with their dtype and the shape after the example axis.
@@ -95,7 +96,7 @@ class Examples:
     ) -> Examples:
         """Examples from pixel box corners and camera positions in a fixed frame.
 
-        See :func:`odmd_bench.data.pixels.from_pixels`.
+        The conversion and its checks: :func:`odmd_bench.data.pixels.pixel_fields`.
 
         Args:
             corners: (N, n_obs, 4) ``x1, y1, x2, y2`` in pixels, NaN in all four where
@@ -107,10 +108,20 @@ class Examples:
 
         Returns:
             The examples in the package's convention.
-        """
-        from odmd_bench.data.pixels import from_pixels
 
-        return from_pixels(corners, camera, image_size, depth, **kwargs)
+        Raises:
+            DataError: wrong shapes, a box partly NaN, with ``x2 <= x1`` or ``y2 <= y1``,
+                non-finite numbers, or a known depth that is not > 0 (every problem named).
+
+        Example:
+            >>> import numpy as np
+            >>> corners = np.array([[[280.0, 200.0, 360.0, 280.0], [270.0, 190.0, 370.0, 290.0]]])
+            >>> camera = np.array([[[0.0, 0.0, 0.0], [0.0, 0.0, 0.2]]])
+            >>> ex = Examples.from_pixels(corners, camera, (640, 480))
+            >>> ex.boxes[0, 1].tolist(), ex.camera[0, 0].tolist(), bool(np.isnan(ex.depth[0]))
+            ([0.5, 0.5, 0.15625, 0.20833333333333334], [0.0, 0.0, -0.2], True)
+        """
+        return cls(**pixel_fields(corners, camera, image_size, depth, **kwargs))
 
     @property
     def n_obs(self) -> int:

@@ -1,4 +1,4 @@
-"""Pixel boxes and camera positions as :class:`Examples`: the conversion, both ways.
+"""Pixel boxes and camera positions as the arrays of :class:`~odmd_bench.data.examples.Examples`: the conversion, both ways.
 
 Detectors give box corners in pixels; the package's convention (docs/format.md#words) is
 centre and size divided by the image width and height. The conversion is exact up to
@@ -21,7 +21,6 @@ from typing import Any
 
 import numpy as np
 
-from odmd_bench.data.examples import Examples
 from odmd_bench.errors import DataError, UsageError
 from odmd_bench.inputs.problems import SHOWN
 
@@ -116,7 +115,7 @@ def _where(mask: Any, label: str = "example") -> str:
     return f"{label} {shown}{more}"
 
 
-def from_pixels(
+def pixel_fields(
     corners: Any,
     camera: Any,
     image_size: Sequence[float],
@@ -125,8 +124,11 @@ def from_pixels(
     intrinsics: Sequence[float] | None = None,
     observation_depth: Any = None,
     attrs: dict[str, Any] | None = None,
-) -> Examples:
-    """Examples from pixel boxes and camera positions in a fixed frame.
+) -> dict[str, Any]:
+    """The fields of :class:`Examples` from pixel boxes and camera positions in a fixed frame.
+
+    :meth:`Examples.from_pixels <odmd_bench.data.examples.Examples.from_pixels>` makes the
+    examples of them.
 
     Args:
         corners: (N, n_obs, 4) box corners ``x1, y1, x2, y2`` in pixels, NaN in all four
@@ -141,8 +143,9 @@ def from_pixels(
         attrs: further metadata.
 
     Returns:
-        :class:`Examples` with ``attrs`` holding ``image_width``, ``image_height`` and,
-        when given, ``fx, fy, cx, cy``.
+        ``boxes``, ``detected``, ``camera``, ``depth``, ``observation_depth`` and
+        ``attrs`` (holding ``image_width``, ``image_height`` and, when given, ``fx, fy,
+        cx, cy``), the keyword arguments of :class:`Examples`.
 
     Raises:
         DataError: wrong shapes, a box partly NaN, with ``x2 <= x1`` or ``y2 <= y1``,
@@ -152,8 +155,8 @@ def from_pixels(
         >>> import numpy as np
         >>> corners = np.array([[[280.0, 200.0, 360.0, 280.0], [270.0, 190.0, 370.0, 290.0]]])
         >>> camera = np.array([[[0.0, 0.0, 0.0], [0.0, 0.0, 0.2]]])
-        >>> ex = from_pixels(corners, camera, (640, 480))
-        >>> ex.boxes[0, 1].tolist(), ex.camera[0, 0].tolist(), bool(np.isnan(ex.depth[0]))
+        >>> ex = pixel_fields(corners, camera, (640, 480))
+        >>> ex["boxes"][0, 1].tolist(), ex["camera"][0, 0].tolist(), bool(np.isnan(ex["depth"][0]))
         ([0.5, 0.5, 0.15625, 0.20833333333333334], [0.0, 0.0, -0.2], True)
     """
     width, height = image_size_of(image_size)
@@ -203,14 +206,14 @@ def from_pixels(
     if k is not None:
         meta.update(fx=k[0], fy=k[1], cx=k[2], cy=k[3])
     meta.update(attrs or {})
-    return Examples(
-        boxes=boxes,
-        detected=detected,
-        camera=cam - cam[:, -1:, :],
-        depth=d.copy(),
-        observation_depth=None if od is None else od.copy(),
-        attrs=meta,
-    )
+    return {
+        "boxes": boxes,
+        "detected": detected,
+        "camera": cam - cam[:, -1:, :],
+        "depth": d.copy(),
+        "observation_depth": None if od is None else od.copy(),
+        "attrs": meta,
+    }
 
 
-__all__ = ["boxes_to_corners", "corners_to_boxes", "from_pixels", "image_size_of", "intrinsics_of"]
+__all__ = ["boxes_to_corners", "corners_to_boxes", "image_size_of", "intrinsics_of", "pixel_fields"]

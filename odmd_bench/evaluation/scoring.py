@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from odmd_bench._version import __version__
 from odmd_bench.data.examples import Examples, set_problems
 from odmd_bench.data.registry import Benchmark, resolve_benchmark
 from odmd_bench.data.store import is_pinned
@@ -68,8 +69,6 @@ def score(
         DataError: a set cannot be scored against (:func:`~odmd_bench.data.examples.set_problems`:
             a true depth that is not finite and positive, for instance).
     """
-    from odmd_bench import __version__
-
     per_set: dict[str, dict[str, Any]] = {}
     preds: dict[str, np.ndarray] = {}
     used: dict[str, Examples] = {}

@@ -8,7 +8,7 @@ The package, by concern:
 - :mod:`odmd_bench.documents`: bounded YAML/JSON reading (no aliases), shared with the
   generator configurations.
 - :mod:`~odmd_bench.leaderboard.files`: the folder: discovery, reading entries (no
-  symbolic links), writing the outputs; :mod:`~odmd_bench.leaderboard.add` adds one.
+  symbolic links); :mod:`~odmd_bench.leaderboard.add` adds one.
 - :mod:`~odmd_bench.leaderboard.board`: loading each board's sets once and scoring
   (:func:`~odmd_bench.leaderboard.board.score_predictions` is the one call into the
   evaluator); :mod:`~odmd_bench.leaderboard.ranking`: rank groups, pure.
@@ -16,6 +16,7 @@ The package, by concern:
 - :mod:`~odmd_bench.leaderboard.render`: :func:`build` and the markdown, JSON and README
   texts; :mod:`~odmd_bench.leaderboard.plot`: the plot; :mod:`~odmd_bench.leaderboard.diff`:
   :func:`check`, naming each file, row and field that differs;
+  :mod:`~odmd_bench.leaderboard.output`: :func:`write`, the outputs written at once;
   :mod:`~odmd_bench.leaderboard.dataframe`: :func:`frame`, the leaderboard in pandas.
 
 Nothing here prints.
@@ -60,8 +61,8 @@ from odmd_bench.leaderboard.files import (
     plot_source,
     read_entry,
     readme_path,
-    write,
 )
+from odmd_bench.leaderboard.output import write
 from odmd_bench.leaderboard.ranking import RANK_CONFIDENCE, RANK_RESAMPLES, RANK_SEED, Ranked, rank_groups
 from odmd_bench.leaderboard.render import (
     JSON_DECIMALS,

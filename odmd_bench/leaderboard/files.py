@@ -1,4 +1,4 @@
-"""The leaderboard folder: finding it, discovering and reading entries, writing the outputs.
+"""The leaderboard folder: finding it, discovering and reading entries, the outputs' names.
 
 The folder (``leaderboard/`` in the repository) holds::
 
@@ -17,20 +17,14 @@ before anything in it is read (a link is never followed, and its target never sh
 from __future__ import annotations
 
 import hashlib
-import importlib.util
 import os
 import struct
 from pathlib import Path
-from typing import TYPE_CHECKING
 
-from odmd_bench.data.atomic import atomic_texts
 from odmd_bench.documents import MAX_DOCUMENT_BYTES, DocumentError, load_document
 from odmd_bench.errors import UsageError, ValidationError
 from odmd_bench.inputs.source import MAX_PREDICTIONS_BYTES, read_source
 from odmd_bench.leaderboard.entry import ENTRY_FILES, Entry, validate_meta
-
-if TYPE_CHECKING:
-    from odmd_bench.leaderboard.render import Built
 
 #: Generated files and folders, relative to the leaderboard folder.
 MARKDOWN = "LEADERBOARD.md"
@@ -259,39 +253,3 @@ def plot_problem(root: str | os.PathLike[str], json_text: str) -> str | None:
     if source != board_digest(json_text):
         return f"{PLOT} was drawn from another board than {JSON_FILE} describes (it is out of date); {fix}"
     return None
-
-
-def write(root: str | os.PathLike[str], built: Built, *, plot: bool = True) -> list[str]:
-    """Write ``LEADERBOARD.md``, ``leaderboard.json``, the README block and (with matplotlib) the plot.
-
-    Returns:
-        One line per thing done or skipped.
-    """
-    root = Path(root)
-    said = []
-    texts = [(root / MARKDOWN, built.markdown), (root / JSON_FILE, built.json_text)]
-    stale = stale_readme(root, built.readme_block)
-    if stale is not None:
-        texts.append((stale[0], stale[2]))
-    if plot and importlib.util.find_spec("matplotlib") is None:
-        plot = False
-        said.append(
-            f"skipped the plot {root / PLOT}: matplotlib is not installed (pip install 'odmd-bench[plot]')"
-        )
-    if not plot:
-        stale_plot = plot_problem(root, built.json_text)
-        if stale_plot is not None:
-            said.append(f"warning: {stale_plot}; `leaderboard check` fails until then")
-    # Every file, the plot included, is written before any replaces its old version: a
-    # failure (a full disk, a file size limit, a file that cannot be replaced) leaves the
-    # board as it was, all of it.
-    with atomic_texts(texts, also=[root / PLOT] if plot else []) as figure:
-        if plot:
-            from odmd_bench.leaderboard.plot import plot_boards
-
-            plot_boards(built.boards, figure[0], source=board_digest(built.json_text))
-            said.append(f"wrote {root / PLOT}")
-    said[:0] = [f"wrote {root / MARKDOWN}", f"wrote {root / JSON_FILE}"] + (
-        [f"updated the leaderboard summary in {stale[0]}"] if stale is not None else []
-    )
-    return said

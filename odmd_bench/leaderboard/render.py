@@ -1,6 +1,6 @@
 """The generated texts: ``LEADERBOARD.md``, ``leaderboard.json`` and the README's summary block.
 
-:func:`build` computes them (nothing is written; :func:`~odmd_bench.leaderboard.files.write`
+:func:`build` computes them (nothing is written; :func:`~odmd_bench.leaderboard.output.write`
 writes them). Every function here is pure given the boards.
 """
 

@@ -42,7 +42,7 @@ from typing import Any
 import numpy as np
 
 from odmd_bench.data.examples import Examples
-from odmd_bench.data.pixels import boxes_to_corners, from_pixels, image_size_of, intrinsics_of
+from odmd_bench.data.pixels import boxes_to_corners, image_size_of, intrinsics_of
 from odmd_bench.errors import UsageError, ValidationError
 from odmd_bench.inputs.problems import Problems
 from odmd_bench.inputs.records import decode
@@ -249,7 +249,7 @@ def read_sequences(
         if rows.depth is not None:
             obs_depth = rows.depth[take]
             truth = obs_depth[:, -1]
-        ex = from_pixels(
+        ex = Examples.from_pixels(
             num[:, :, 1:5],
             num[:, :, 5:8],
             size,
