@@ -24,7 +24,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import odmd_bench
-from odmd_bench.data.atomic import clean_stale_temps
+from odmd_bench.data.atomic import clean_stale_temps, locked
 from odmd_bench.data.hashing import content_sha256, meta_sha256
 from odmd_bench.data.io import read_set, write_sets
 from odmd_bench.data.registry import set_file
@@ -464,6 +464,28 @@ def test_a_sigkilled_writer_leaves_a_temp_file_that_the_next_write_removes(tmp_p
     ensure_generated("odmd-v1", ["val"], tmp_path, progress=messages.append)
     assert not tmp.exists() and any(str(tmp) in m for m in messages)
     _no_temp_left(tmp_path)
+
+
+def test_a_sigkilled_lock_holder_leaves_the_lock_free(tmp_path: Path) -> None:
+    """The lock dies with its holder: the next writer takes it (it would wait forever if not)."""
+    target = tmp_path / "odmd-v1" / "val.h5"
+    script = textwrap.dedent(
+        """
+        import sys, time
+        from odmd_bench.data.atomic import locked
+        with locked(sys.argv[1]):
+            print("held", flush=True)
+            time.sleep(3600)
+        """
+    )
+    child = subprocess.Popen([sys.executable, "-c", script, str(target)], stdout=subprocess.PIPE, text=True)
+    assert child.stdout is not None
+    assert child.stdout.readline().strip() == "held"
+    child.send_signal(signal.SIGKILL)
+    child.wait()
+    child.stdout.close()
+    with locked(target) as lock:
+        assert lock.parent == target.parent
 
 
 def test_only_stale_temp_files_of_the_target_are_removed(tmp_path: Path) -> None:

@@ -19,7 +19,6 @@ import re
 import shutil
 import socket
 import stat
-import sys
 import tempfile
 import time
 from collections.abc import Iterator, Sequence
@@ -441,36 +440,29 @@ def atomic_texts(
 def locked(path: str | os.PathLike[str]) -> Iterator[Path]:
     """Hold an exclusive lock for writing ``path``, across processes.
 
-    The lock is ``fcntl.flock`` (``msvcrt.locking`` on Windows) on the file
-    ``.NAME.lock`` beside ``path``, which stays (deleting a lock file lets two
-    writers lock two different files). Readers do not lock: every write replaces the
-    file atomically, so a reader sees the old file or the new one. Blocks until the
-    lock is free. Yields the lock file's path.
+    The lock is :class:`filelock.FileLock` (``flock`` on POSIX, ``LockFileEx`` on
+    Windows) on the file ``.NAME.lock`` beside ``path``; the kernel releases it when its
+    holder dies, so a killed writer never leaves a lock behind. Readers do not lock:
+    every write replaces the file atomically, so a reader sees the old file or the new
+    one. Blocks until the lock is free. Yields the lock file's path.
+
+    Raises:
+        StorageError: the lock file cannot be created (the message says why and what to do).
     """
+    from filelock import FileLock  # here: it takes 0.1 s to import, and most commands never lock
+
     target = Path(path)
     ensure_folder(target.parent)
     lock = target.parent / f".{target.name}.lock"
+    held = FileLock(lock)
     try:
-        fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o666)  # the kernel applies the umask
+        held.acquire()
     except OSError as e:
         raise storage_error(e, lock, "create the lock file") from None
     try:
-        if sys.platform == "win32":  # pragma: no cover - not run on Linux CI
-            import msvcrt
-
-            while True:  # LK_LOCK tries for 10 s, then raises: wait as long as flock does
-                try:
-                    msvcrt.locking(fd, msvcrt.LK_LOCK, 1)
-                    break
-                except OSError:
-                    continue
-        else:
-            import fcntl
-
-            fcntl.flock(fd, fcntl.LOCK_EX)
         yield lock
     finally:
-        os.close(fd)  # closing the descriptor releases the lock
+        held.release()
 
 
 __all__ = [
