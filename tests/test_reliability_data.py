@@ -484,8 +484,17 @@ def test_a_sigkilled_lock_holder_leaves_the_lock_free(tmp_path: Path) -> None:
     child.send_signal(signal.SIGKILL)
     child.wait()
     child.stdout.close()
-    with locked(target) as lock:
-        assert lock.parent == target.parent
+    lock = target.parent / ".val.h5.lock"
+    assert lock.exists()  # a killed writer's lock file stays...
+    with locked(target) as held:
+        assert held == lock
+    assert not lock.exists()  # ...until the next writer of that file removes it
+
+
+def test_writers_leave_no_lock_file_in_the_data_folder(v1: Path) -> None:
+    """``generate`` held a lock on each split's file while it wrote it; none is left."""
+    assert sorted(p.name for p in v1.rglob("*.h5")) == ["test.h5", "val.h5"]
+    assert [p.name for p in v1.rglob("*.lock")] == []
 
 
 def test_only_stale_temp_files_of_the_target_are_removed(tmp_path: Path) -> None:

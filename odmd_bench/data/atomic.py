@@ -442,7 +442,9 @@ def locked(path: str | os.PathLike[str]) -> Iterator[Path]:
 
     The lock is :class:`filelock.FileLock` (``flock`` on POSIX, ``LockFileEx`` on
     Windows) on the file ``.NAME.lock`` beside ``path``; the kernel releases it when its
-    holder dies, so a killed writer never leaves a lock behind. Readers do not lock:
+    holder dies, so a killed writer never leaves a lock behind. The lock file is removed
+    before the lock is released (only a killed writer's stays, until the next writer of
+    ``path`` removes it). Readers do not lock:
     every write replaces the file atomically, so a reader sees the old file or the new
     one. Blocks until the lock is free. Yields the lock file's path.
 
@@ -462,6 +464,11 @@ def locked(path: str | os.PathLike[str]) -> Iterator[Path]:
     try:
         yield lock
     finally:
+        # Removed while held, so that no empty lock file is left in the data folder: a
+        # writer waiting on it then holds a lock on a file with no name, which filelock
+        # (3.21 on) sees and gives up for the new file, so two writers never both hold.
+        with contextlib.suppress(OSError):
+            lock.unlink()
         held.release()
 
 
