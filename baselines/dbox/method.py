@@ -18,8 +18,12 @@ from odmd_bench_baselines.dbox.weights import (
 from odmd_bench import DataError, Examples, implied_depth
 
 #: Absolute-depth configurations are said to be outside their training data where the
-#: implied depth is beyond this factor of its range (the implied depth is a rough scale).
+#: implied depth is beyond this factor of its range (the implied depth is a rough scale)
+#: for more than :data:`RANGE_SHARE` of the examples (noisy sets of the right scale have
+#: a few: 2.6 % of generated ``odmd`` examples with both perturbations, at most 2.3 % of
+#: an ``odmd-paper`` test set).
 RANGE_MARGIN = 1.5
+RANGE_SHARE = 0.25
 
 
 def predict(
@@ -130,8 +134,9 @@ def input_warnings(
       moves sideways: named with its x, y, z twin;
     - an absolute-depth configuration (``abs``, ``abs-z``) on examples whose implied
       depth (:func:`odmd_bench.implied_depth`) is beyond :data:`RANGE_MARGIN` times the
-      depth range of its training data (:func:`training_depth_range`): named with the
-      relative-depth configuration, which is scale-free.
+      depth range of its training data (:func:`training_depth_range`) for more than
+      :data:`RANGE_SHARE` of them: named with the relative-depth configuration, which
+      is scale-free.
 
     A checkpoint of one's own (``weights=``) is not judged.
     """
@@ -152,7 +157,7 @@ def input_warnings(
         lo, hi = training_depth_range(cfg)
         z = implied_depth(examples)
         far = np.isfinite(z) & ((z > hi * RANGE_MARGIN) | (z < lo / RANGE_MARGIN))
-        if far.any():
+        if far.sum() > RANGE_SHARE * n:
             rel = "p-z" if cfg.endswith("-z") else "p"
             out.append(
                 f"DBox config {cfg!r} learnt absolute depths from {lo:.3g} to {hi:.3g} m (its training "

@@ -64,7 +64,7 @@ def implied_depth(examples: Examples) -> np.ndarray:
     seen = examples.detected.any(axis=1)
     with np.errstate(divide="ignore", invalid="ignore"):
         z = num / den
-    return np.where(seen & (den > 0) & np.isfinite(z), z, np.nan)
+    return np.where(seen & (den > 0) & np.isfinite(z) & (z > 0), z, np.nan)
 
 
 def implied_size(examples: Examples, depth: np.ndarray, focal: float | None = None) -> np.ndarray:

@@ -34,10 +34,11 @@ from odmd_bench.data.scale import implied_depth, implied_size
 FRACTION_MAX = 1.5
 #: Fractions are recognised only in images at least this many pixels wide and high.
 MIN_IMAGE_PIXELS = 20.0
-#: The plausible object widths, metres (half a millimetre to a hundred metres).
-SIZE_RANGE = (5e-4, 100.0)
-#: Focal lengths assumed without intrinsics, as multiples of the image width.
-FOCAL_GUESS = (0.25, 4.0)
+#: The plausible object widths, metres (a millimetre to fifty metres).
+SIZE_RANGE = (1e-3, 50.0)
+#: Focal lengths assumed without intrinsics, as multiples of the image width (fields of
+#: view of 28 to 90 degrees: phones, webcams, dashboard and robot cameras).
+FOCAL_GUESS = (0.5, 2.0)
 
 
 def fraction_boxes_problem(

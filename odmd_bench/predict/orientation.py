@@ -98,7 +98,12 @@ def relative_rotations(r: np.ndarray) -> np.ndarray:
 def turn_degrees(rel: np.ndarray) -> np.ndarray:
     """The angle of each relative rotation (..., 3, 3), degrees."""
     cos = (np.trace(rel, axis1=-2, axis2=-1) - 1) / 2
-    return np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
+    skew = np.stack(
+        [rel[..., 2, 1] - rel[..., 1, 2], rel[..., 0, 2] - rel[..., 2, 0], rel[..., 1, 0] - rel[..., 0, 1]],
+        axis=-1,
+    )
+    sin = np.sqrt((skew * skew).sum(axis=-1)) / 2  # precise for small turns, unlike arccos
+    return np.degrees(np.arctan2(sin, cos))
 
 
 def positions_in_last(camera: np.ndarray, r: np.ndarray) -> np.ndarray:
