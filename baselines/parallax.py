@@ -213,6 +213,33 @@ def predict_report(
     return depth, {**report, NO_LATERAL_MOTION: int(flat.sum())}
 
 
+#: ``input_warnings`` speaks where one lateral axis moved less than this share of the other.
+WEAK_AXIS = 0.1
+
+
+def input_warnings(examples: odmd_bench.Examples, combine: Combine = "mean") -> list[str]:
+    """What ``odmd-bench predict`` and ``baseline`` say before running (``odmd_bench.predict.checks``).
+
+    With ``combine="mean"``, the examples whose camera moved along one lateral axis by
+    more than the threshold but less than :data:`WEAK_AXIS` of the other: that axis's
+    solution, a small motion over a small parallax, is dominated by noise and the mean
+    with it (``--combine lsq`` weights it by its parallax).
+    """
+    if combine != "mean" or len(examples) == 0:
+        return []
+    move = np.abs(examples.camera[:, -1, :2] - examples.camera[:, 0, :2])
+    limit = MIN_AXIS_TRAVEL * np.sqrt((move * move).sum(axis=1))
+    small, large = move.min(axis=1), move.max(axis=1)
+    weak = int(((small > limit) & (small < WEAK_AXIS * large)).sum())
+    if not weak:
+        return []
+    return [
+        f"parallax: in {weak} of {len(examples)} examples the camera moved along one lateral axis less than "
+        f"a tenth of the other; the mean of the two axes' solutions (the paper's) is unreliable there: "
+        "--combine lsq weights each axis by its parallax"
+    ]
+
+
 def combine_halves(
     first: tuple[np.ndarray, np.ndarray],
     second: tuple[np.ndarray, np.ndarray],

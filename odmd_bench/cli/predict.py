@@ -165,8 +165,8 @@ def predict(
         say(f"  ignored columns: {', '.join(seqs.ignored_columns)}")
     if seqs.oriented:
         say(
-            f"  orientation: turns of up to {float(seqs.turn.max()):.3g} degrees; boxes carried into "
-            "each sequence's last orientation, depth along its optical axis"
+            f"  orientation: turns of up to {float(seqs.turn.max()):.3g} degrees, taken into account; "
+            "depths along each sequence's last optical axis"
         )
     for line in seqs.warnings + result.warnings:
         say(f"warning: {line}")

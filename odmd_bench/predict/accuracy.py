@@ -51,6 +51,7 @@ METHODS: tuple[tuple[str, str, dict[str, Any]], ...] = (
     ("parallax", "parallax", {}),
     ("parallax --combine lsq", "parallax", {"combine": "lsq"}),
     ("robust", "robust", {}),
+    ("dbox", "dbox", {}),
 )
 
 #: Turns (degrees) of the carry table.

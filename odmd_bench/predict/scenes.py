@@ -31,6 +31,7 @@ step, per axis) and 0.2 degrees of orientation noise per observation.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from typing import Literal
 
@@ -119,6 +120,8 @@ def make_scenes(
     *,
     oriented: bool | None = None,
     shape: Shape = "billboard",
+    image_size: tuple[float, float] = IMAGE_SIZE,
+    intrinsics: tuple[float, float, float, float] = INTRINSICS,
 ) -> Scenes:
     """``n`` sequences of cars, people and signs (module docstring).
 
@@ -133,6 +136,8 @@ def make_scenes(
         shape: ``"billboard"``, the model above, or ``"plane"``: a flat rectangle facing
             the last observation, whose box in a turned camera is the bounding box of
             its four projected corners (to measure how boxes are carried).
+        image_size: ``(W, H)`` of the camera's images (default 640 x 480).
+        intrinsics: ``(fx, fy, cx, cy)`` (default fx = fy = 500 at the centre).
 
     Returns:
         :class:`Scenes`, every object in view of every observation.
@@ -149,8 +154,8 @@ def make_scenes(
     if oriented is None:
         oriented = turn > 0
     gen = as_rng(rng)
-    fx, fy, cx, cy = INTRINSICS
-    width, height = IMAGE_SIZE
+    fx, fy, cx, cy = intrinsics
+    width, height = image_size
     kinds = list(OBJECTS)
     out: dict[str, list[np.ndarray]] = {k: [] for k in ("corners", "pos", "rot", "depth", "size")}
     got = 0
@@ -246,4 +251,48 @@ def make_scenes(
     )
 
 
-__all__ = ["IMAGE_SIZE", "INTRINSICS", "MOTIONS", "OBJECTS", "Scenes", "make_scenes"]
+#: The phone of the worked example (docs/own-data.md): 12 megapixels, fx = fy = 3100.
+PHONE_SIZE = (4032.0, 3024.0)
+PHONE_INTRINSICS = (3100.0, 3100.0, 2016.0, 1512.0)
+
+
+def phone_example(rng: int = 3) -> Scenes:
+    """The worked example's turning phone (``docs/sequences-turning.csv``).
+
+    Three objects photographed ten times each while walking on flat ground and turning
+    the phone by up to 12 degrees, with the noise of :func:`make_scenes` (hand-held
+    jitter as odometry drift, the motion sensor's orientation noise, one in ten
+    pictures missed) and the boxes rounded to whole pixels, as a detector writes them.
+    """
+    s = make_scenes(
+        3,
+        "ground",
+        turn=12.0,
+        noise=True,
+        rng=rng,
+        image_size=PHONE_SIZE,
+        intrinsics=PHONE_INTRINSICS,
+    )
+    return dataclasses.replace(
+        s,
+        corners=np.round(s.corners),
+        positions=np.round(s.positions, 3),
+        orientation=np.round(s.orientation, 6),
+    )
+
+
+__all__ = [
+    "IMAGE_SIZE",
+    "INTRINSICS",
+    "MOTIONS",
+    "OBJECTS",
+    "PHONE_INTRINSICS",
+    "PHONE_SIZE",
+    "Scenes",
+    "make_scenes",
+    "phone_example",
+]
+
+
+if __name__ == "__main__":  # python -m odmd_bench.predict.scenes > docs/sequences-turning.csv
+    print(phone_example().csv(), end="")
