@@ -101,7 +101,7 @@ def header_columns(data: bytes, problems: Problems) -> tuple[list[str], dict[str
                     problems.add(f"the header {show(header[0])} seems to use {name} as separator; use commas")
                     break
         problems.add(
-            f"expected the columns {', '.join(REQUIRED_COLUMNS)} (optional: depth; others are ignored); "
+            f"expected the columns {', '.join(REQUIRED_COLUMNS)} (optional: depth, and cam_qx, cam_qy, cam_qz, cam_qw together; others are ignored); "
             f"the header is {show(','.join(header), 120)}"
         )
     return None if problems else (header, cols)
