@@ -235,8 +235,8 @@ def input_warnings(examples: odmd_bench.Examples, combine: Combine = "mean") -> 
         return []
     return [
         f"parallax: in {weak} of {len(examples)} examples the camera moved along one lateral axis less than "
-        f"a tenth of the other; the mean of the two axes' solutions (the paper's) is unreliable there: "
-        "--combine lsq weights each axis by its parallax"
+        f"a tenth of the other; there the mean of the two axes' solutions (the paper's) takes half of one "
+        "from little motion, which noise ruins: --combine lsq weights each axis by its parallax"
     ]
 
 
