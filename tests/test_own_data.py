@@ -331,3 +331,16 @@ def test_baseline_says_what_the_checks_find(paper_data_dir: Path) -> None:
     # ODMD's own sets: both axes move, some barely; the paper's mean is kept, and said.
     assert "warning: camera: parallax: in 345 of 3000 examples" in r.stderr
     assert "implausible" not in r.stderr
+
+
+def test_both_readers_read_the_orientation_alike() -> None:
+    # A blank line sends the file to the row-by-row reader; the arrays must not change.
+    text = make_scenes(6, "free", turn=10.0, noise=True, rng=17).csv()
+    lines = text.splitlines(keepends=True)
+    careful = _read("".join(lines[:5] + ["\n"] + lines[5:]))
+    fast = _read(text)
+    for (_, a), (_, b) in zip(fast.groups, careful.groups, strict=True):
+        np.testing.assert_array_equal(a.boxes, b.boxes)
+        np.testing.assert_array_equal(a.camera, b.camera)
+        np.testing.assert_array_equal(a.extras["rotation"], b.extras["rotation"])
+    np.testing.assert_array_equal(fast.turn, careful.turn)
