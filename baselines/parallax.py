@@ -9,7 +9,8 @@ solutions (supplementary equations ``zimp`` and ``zivmp``) are::
     Z_x = (fx/W) (C_Xn - C_X1) / ((x_1 - cx/W) (w_n / w_1) - (x_n - cx/W))
     Z_y = (fy/H) (C_Yn - C_Y1) / ((y_1 - cy/H) (h_n / h_1) - (y_n - cy/H))
 
-and the estimate is their mean ``(Z_x + Z_y) / 2``. The method needs the camera
+and the estimate is their mean ``(Z_x + Z_y) / 2``, over the axes on which the camera
+moved (below). The method needs the camera
 intrinsics, which come from the set's attributes (:meth:`odmd_bench.Examples.intrinsics`
 raises a :class:`odmd_bench.DataError` naming the set when it has none).
 
@@ -39,9 +40,20 @@ Further fallbacks (each example is counted once, in this order of precedence):
     ``combine="lsq"`` only: the combined solution is not finite (both denominators 0,
     for instance a single detected end point copied to the other): ``fallback_depth``.
 
+**One-axis motion.** An axis counts as moved when the camera's travel along it between
+the two end points exceeds ``min_axis_travel`` (default :data:`MIN_AXIS_TRAVEL`, one
+millionth) times the camera's whole travel between them. Where only one lateral axis
+moved (a robot base or a car moving sideways, never up or down) its solution is the
+estimate, with either ``combine``: the other axis has no parallax (numerator 0), and the
+mean would halve the depth. Where both moved, nothing changes: the smallest share of
+one axis in an ODMD set is 3.7e-6 (``odmd-paper`` val object), so every ODMD example
+uses both axes as the paper did. An axis that moved a little but more than the threshold
+(odometry drift, say) still enters the mean and can ruin it: ``combine="lsq"``
+(``--combine lsq``) weights each axis by its parallax.
+
 One more count is not a fallback but a warning, counted besides them:
-``no_lateral_motion``, the examples with a detection whose camera did not move in x or y
-between the two end points. Motion parallax needs lateral motion; without it both
+``no_lateral_motion``, the examples with a detection whose camera moved in neither x
+nor y (by the threshold above) between the two end points. Motion parallax needs lateral motion; without it both
 numerators are 0 and the formula gives 0 m (or, where a denominator is 0 as well, the
 1 m fallback above), which is kept (the paper's formula, and the original release's
 output) and scored as given. z-only data (ODMS, a camera driving straight on) gives it
@@ -86,6 +98,9 @@ NO_LATERAL_MOTION = "no_lateral_motion"
 
 Fill = Literal["endpoints", "all"]
 FILLS: tuple[str, ...] = ("endpoints", "all")
+
+#: An axis counts as moved when its travel exceeds this share of the camera's whole travel.
+MIN_AXIS_TRAVEL = 1e-6
 
 Combine = Literal["mean", "lsq"]
 COMBINES: tuple[str, ...] = ("mean", "lsq")
@@ -134,6 +149,7 @@ def predict_report(
     fill: Fill = "endpoints",
     fallback_depth: float = DEFAULT_FALLBACK_DEPTH,
     combine: Combine = "mean",
+    min_axis_travel: float = MIN_AXIS_TRAVEL,
 ) -> tuple[np.ndarray, dict[str, int]]:
     """Two-observation motion-parallax depths and how many examples used each fallback.
 
@@ -145,6 +161,8 @@ def predict_report(
             solution is not finite.
         combine: How the lateral and vertical solutions are combined, ``"mean"`` or
             ``"lsq"`` (module docstring); ``"mean"`` reproduces the paper.
+        min_axis_travel: an axis is used where the camera's travel along it exceeds this
+            share of its whole travel (module docstring).
 
     Returns:
         ``(depths, fallbacks)``: ``depths`` (N,) finite depth estimates at the last
@@ -159,6 +177,9 @@ def predict_report(
     if not np.isfinite(fallback_depth):
         raise odmd_bench.UsageError(f"fallback_depth must be finite, got {fallback_depth}")
     check_combine(combine)
+    min_axis_travel = float(min_axis_travel)
+    if not (np.isfinite(min_axis_travel) and 0 <= min_axis_travel < 1):
+        raise odmd_bench.UsageError(f"min_axis_travel must be in [0, 1), got {min_axis_travel}")
     fx, fy, cx, cy, width, height = examples.intrinsics()
     fx, cx, fy, cy = fx / width, cx / width, fy / height, cy / height
     boxes, none = endpoint_boxes(examples, fill)
@@ -169,10 +190,54 @@ def predict_report(
         num_x, num_y = fx * move[:, 0], fy * move[:, 1]
         den_x = (first[:, 0] - cx) * (last[:, 2] / first[:, 2]) - (last[:, 0] - cx)
         den_y = (first[:, 1] - cy) * (last[:, 3] / first[:, 3]) - (last[:, 1] - cy)
-    depth, counts = combine_halves((num_x, den_x), (num_y, den_y), none, fallback_depth, combine, ("x", "y"))
-    flat = (move[:, 0] == 0) & (move[:, 1] == 0) & ~none  # nothing for the formula to work with
+    limit = min_axis_travel * np.sqrt((move * move).sum(axis=1))
+    moved_x, moved_y = np.abs(move[:, 0]) > limit, np.abs(move[:, 1]) > limit
+    one_axis = moved_x ^ moved_y
+    depth, counts = combine_halves(
+        (num_x, den_x), (num_y, den_y), none | one_axis, fallback_depth, combine, ("x", "y")
+    )
+    # One lateral axis moved: its solution alone (the other has no parallax to average in).
+    for axis, alone, num, den in (
+        ("x", moved_x & ~moved_y, num_x, den_x),
+        ("y", moved_y & ~moved_x, num_y, den_y),
+    ):
+        alone = alone & ~none
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            z = num / den
+        bad = alone & ~np.isfinite(z)
+        depth = np.where(alone, np.where(bad, fallback_depth, z), depth)
+        key = f"non_finite_{axis}" if combine == "mean" else "non_finite"
+        counts[key] += int(bad.sum())
+    flat = ~moved_x & ~moved_y & ~none  # nothing for the formula to work with
     report = {**dict.fromkeys(FALLBACKS, 0), "no_detection": int(none.sum()), **counts}
     return depth, {**report, NO_LATERAL_MOTION: int(flat.sum())}
+
+
+#: ``input_warnings`` speaks where one lateral axis moved less than this share of the other.
+WEAK_AXIS = 0.1
+
+
+def input_warnings(examples: odmd_bench.Examples, combine: Combine = "mean") -> list[str]:
+    """What ``odmd-bench predict`` and ``baseline`` say before running (``odmd_bench.predict.checks``).
+
+    With ``combine="mean"``, the examples whose camera moved along one lateral axis by
+    more than the threshold but less than :data:`WEAK_AXIS` of the other: that axis's
+    solution, a small motion over a small parallax, is dominated by noise and the mean
+    with it (``--combine lsq`` weights it by its parallax).
+    """
+    if combine != "mean" or len(examples) == 0:
+        return []
+    move = np.abs(examples.camera[:, -1, :2] - examples.camera[:, 0, :2])
+    limit = MIN_AXIS_TRAVEL * np.sqrt((move * move).sum(axis=1))
+    small, large = move.min(axis=1), move.max(axis=1)
+    weak = int(((small > limit) & (small < WEAK_AXIS * large)).sum())
+    if not weak:
+        return []
+    return [
+        f"parallax: in {weak} of {len(examples)} examples the camera moved along one lateral axis less than "
+        f"a tenth of the other; there the mean of the two axes' solutions (the paper's) takes half of one "
+        "from little motion, which noise ruins: --combine lsq weights each axis by its parallax"
+    ]
 
 
 def combine_halves(
@@ -215,6 +280,7 @@ def predict(
     fill: Fill = "endpoints",
     fallback_depth: float = DEFAULT_FALLBACK_DEPTH,
     combine: Combine = "mean",
+    min_axis_travel: float = MIN_AXIS_TRAVEL,
 ) -> np.ndarray:
     """Two-observation motion-parallax depth at the last observation for every example.
 
@@ -224,6 +290,7 @@ def predict(
         fallback_depth: Depth for the fallbacks of the module docstring (1 m, as the
             original release).
         combine: ``"mean"`` (the paper) or the opt-in least-squares ``"lsq"``.
+        min_axis_travel: the share of the camera's travel an axis must exceed to be used.
 
     Returns:
         (N,) finite depths in metres.
@@ -234,4 +301,4 @@ def predict(
         >>> bool(abs(predict(ex) - ex.depth).max() < 1e-9)
         True
     """
-    return predict_report(examples, fill, fallback_depth, combine)[0]
+    return predict_report(examples, fill, fallback_depth, combine, min_axis_travel)[0]

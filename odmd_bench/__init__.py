@@ -17,6 +17,7 @@ from odmd_bench.data.generator import GENERATOR_VERSION, generate, stream
 from odmd_bench.data.hashing import file_sha256
 from odmd_bench.data.manifests import known_originals
 from odmd_bench.data.registry import BENCHMARKS, Benchmark, get_benchmark
+from odmd_bench.data.scale import implied_depth
 from odmd_bench.data.store import ensure_generated, load, load_split
 from odmd_bench.errors import (
     ConfigError,
@@ -69,6 +70,7 @@ __all__ = [
     "fill_missing",
     "generate",
     "get_benchmark",
+    "implied_depth",
     "known_originals",
     "load",
     "load_split",

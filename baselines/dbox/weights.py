@@ -99,6 +99,38 @@ def shipped() -> dict[str, list[str]]:
     }
 
 
+def training_depth_range(config: str) -> tuple[float, float]:
+    """The depths (metres) at the last observation that ``config``'s training data span.
+
+    Derived from the generator preset its JSON record names: the first observation's
+    depth range widened by the largest z move (reversed examples end where they began),
+    e.g. 0.225 to 1.325 m for the ``odmd`` preset, 0.088 to 1.4625 m for ``odms``.
+
+    Raises:
+        UsageError: an unknown configuration; DataError: a record that names no preset.
+    """
+    from odmd_bench import PRESETS
+
+    if config not in CONFIGS:
+        raise UsageError(f"unknown DBox config {config!r}; expected one of {', '.join(CONFIGS)}")
+    record = weights_path(config).with_suffix(".json")
+    try:
+        preset = json.loads(record.read_text(encoding="utf-8"))["config"]["preset"]
+        gen = PRESETS[preset]
+    except (OSError, ValueError, KeyError, TypeError) as e:
+        raise DataError(f"{record}: no generator preset recorded ({e})") from None
+    return gen.initial_depth[0] - gen.move_max[2], gen.initial_depth[1] + gen.move_max[2]
+
+
+def lateral_examples(examples: Examples) -> np.ndarray:
+    """(N,) bool: the camera moves sideways (an x or y offset above :data:`Z_ONLY_RATIO` of the z offsets)."""
+    cam = np.asarray(examples.camera, dtype=np.float64)
+    if cam.size == 0:
+        return np.zeros(len(examples), dtype=bool)
+    z = np.abs(cam[..., 2]).max(axis=1)
+    return np.asarray(np.abs(cam[..., :2]).max(axis=(1, 2)) > Z_ONLY_RATIO * z, dtype=bool)
+
+
 def is_z_only(examples: Examples) -> bool:
     """Whether the camera moves along z only (x, y offsets at most 10 % of the z offsets)."""
     if len(examples) == 0:

@@ -1,4 +1,17 @@
-"""The method interface: ``predict``, ``predict_report``, ``predict_details``."""
+"""The method interface: ``predict``, ``predict_report``, ``predict_details``.
+
+**A camera that turns** (``rotation=``, given by ``odmd-bench predict`` from the
+sequences file's quaternion columns): the reprojection model is then that of a turned
+camera. At observation ``k``, turned by ``R_k`` (its axes in the last observation's),
+the object's centre ``P`` projects along ``R_k^T (P - c_k)`` and its box has the
+object's size times ``f`` over the depth along the turned optical axis,
+``(R_k^T (P - c_k))_z``. That model maps each observation exactly, before the fit, into
+the last observation's axes: the centre's ray ``d_k`` becomes ``R_k d_k`` (the rotation's
+homography), and the size is divided by ``lambda_k = (R_k d_k)_z``, the ratio of the two
+depths; the fit then runs unchanged (positions given in the last observation's axes).
+Exact on noise-free scenes of that model; the box noise is not rescaled (``lambda`` is
+within 4 % of 1 for turns under 15 degrees near the image centre).
+"""
 
 from __future__ import annotations
 
@@ -25,6 +38,7 @@ def predict(
     mode: Mode = "full",
     missing: Missing = "omit",
     intrinsics: Intrinsics | None = None,
+    rotation: np.ndarray | None = None,
 ) -> np.ndarray:
     """Depth ``Z_n`` of every example, metres.
 
@@ -36,6 +50,10 @@ def predict(
         missing: ``"omit"`` missing detections or ``"fill"`` them by the shared rule.
         intrinsics: ``(fx, fy, cx, cy, image_width, image_height)`` in pixels, used
             instead of the set's own.
+        rotation: (N, n_obs, 3, 3) each observation's camera axes in the last
+            observation's (a turning camera, module docstring; ``camera`` then in the
+            last observation's axes), or None: the camera does not turn. Needs the
+            intrinsics in either mode.
 
     Returns:
         (N,) float64 depths.
@@ -49,7 +67,9 @@ def predict(
         >>> bool(np.allclose(predict(ex), ex.depth, rtol=1e-9))
         True
     """
-    return predict_report(examples, params, mode=mode, missing=missing, intrinsics=intrinsics)[0]
+    return predict_report(
+        examples, params, mode=mode, missing=missing, intrinsics=intrinsics, rotation=rotation
+    )[0]
 
 
 def predict_report(
@@ -59,6 +79,7 @@ def predict_report(
     mode: Mode = "full",
     missing: Missing = "omit",
     intrinsics: Intrinsics | None = None,
+    rotation: np.ndarray | None = None,
 ) -> tuple[np.ndarray, dict[str, int]]:
     """Like :func:`predict`, also returning the counted fallbacks.
 
@@ -66,7 +87,9 @@ def predict_report(
         ``(depths (N,), counts)`` with ``counts`` = ``{"fit_failed": k,
         "too_few_detections": m, "n": N}``.
     """
-    depth, _, counts = predict_details(examples, params, mode=mode, missing=missing, intrinsics=intrinsics)
+    depth, _, counts = predict_details(
+        examples, params, mode=mode, missing=missing, intrinsics=intrinsics, rotation=rotation
+    )
     return depth, counts
 
 
@@ -77,6 +100,7 @@ def predict_details(
     mode: Mode = "full",
     missing: Missing = "omit",
     intrinsics: Intrinsics | None = None,
+    rotation: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, dict[str, int]]:
     """Like :func:`predict_report`, also returning which noise model each example kept.
 
@@ -89,7 +113,7 @@ def predict_details(
     if missing not in MISSING:
         raise UsageError(f"missing {missing!r} is not one of {', '.join(MISSING)}")
     cam_model: tuple[float, float, float, float] | None = None
-    if mode == "full":
+    if mode == "full" or rotation is not None:
         if intrinsics is None:
             try:
                 intrinsics = examples.intrinsics()
@@ -111,6 +135,10 @@ def predict_details(
 
     boxes = np.asarray(examples.boxes, dtype=np.float64)
     detected = np.asarray(examples.detected, dtype=bool)
+    if rotation is not None and cam_model is not None:
+        boxes = _unturned(boxes, np.asarray(rotation, dtype=np.float64), cam_model)
+        if mode == "scale":
+            cam_model = None
     if missing == "fill":
         boxes = fill_missing(boxes, detected)
         use = np.broadcast_to(detected.any(axis=1, keepdims=True), detected.shape)
@@ -122,3 +150,25 @@ def predict_details(
     if cam_model is None:
         return fit_scale(boxes, usable, camera, params)
     return fit(boxes, usable, camera, cam_model, params)
+
+
+def _unturned(
+    boxes: np.ndarray, rotation: np.ndarray, cam_model: tuple[float, float, float, float]
+) -> np.ndarray:
+    """Boxes (N, n_obs, 4) of a turned camera in the last observation's axes (module docstring).
+
+    Raises:
+        UsageError: ``rotation`` not (N, n_obs, 3, 3) or not finite.
+    """
+    if rotation.shape != boxes.shape[:2] + (3, 3) or not np.isfinite(rotation).all():
+        raise UsageError(f"rotation must be finite, {boxes.shape[:2] + (3, 3)}; got {rotation.shape}")
+    a, b, u0, v0 = cam_model
+    ray = np.stack([(boxes[..., 0] - u0) / a, (boxes[..., 1] - v0) / b, np.ones(boxes.shape[:2])], axis=-1)
+    p = np.einsum("...ij,...j->...i", rotation, ray)
+    lam = p[..., 2]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        out = np.stack(
+            [u0 + a * p[..., 0] / lam, v0 + b * p[..., 1] / lam, boxes[..., 2] / lam, boxes[..., 3] / lam],
+            axis=-1,
+        )
+    return np.where(np.isfinite(out) & (lam[..., None] > 0), out, boxes)

@@ -90,6 +90,7 @@ def baseline(
     config: str | None,
     selection: str | None,
     mode: str | None,
+    combine: str | None,
 ) -> None:
     """Run method NAME on every set of a split and write a predictions CSV.
 
@@ -108,13 +109,26 @@ def baseline(
         raise UsageError("refusing to write the predictions", misplaced)
     method = methods.load(name)
     options = given_options(
-        method, weights=weights, weights_sha256=weights_sha256, config=config, selection=selection, mode=mode
+        method,
+        weights=weights,
+        weights_sha256=weights_sha256,
+        config=config,
+        selection=selection,
+        mode=mode,
+        combine=combine,
     )
+
+    from odmd_bench.predict.checks import method_warnings, scale_warnings
 
     sets = load_split(split, benchmark, data_dir)
     depths: dict[str, np.ndarray] = {}
     reports: dict[str, dict[str, int | str]] = {}
+    warnings: list[str] = []
     for set_name, examples in sets.items():
+        checked = scale_warnings([examples], "examples") + method_warnings(
+            method, examples.without_truth(), options
+        )
+        warnings += [f"{set_name}: {w}" for w in checked]
         depths[set_name], reports[set_name] = method.run(examples, **options)
 
     if to_stdout:
@@ -137,6 +151,8 @@ def baseline(
         used = [f"{k} {v}" for k, v in report.items() if isinstance(v, int) and k != "n" and v]
         extra = "".join(f"; {k} {v}" for k, v in own.items() if k not in common)
         say(f"  {set_name}: fallbacks: {', '.join(used) or 'none'}{extra}")
+    for line in warnings:
+        click.echo(f"warning: {line}", err=True)
     hint = f"odmd-bench evaluate {'-' if to_stdout else path}"
     if benchmark != DEFAULT_BENCHMARK:
         hint += f" --benchmark {benchmark}"

@@ -64,13 +64,13 @@ def data_folder_problems(outputs: Mapping[str, Path | None], data_dir: Path | No
 
 
 #: The options a method may take; each is passed only to a method whose ``predict`` does.
-METHOD_OPTIONS: tuple[str, ...] = ("weights", "weights_sha256", "config", "selection", "mode")
+METHOD_OPTIONS: tuple[str, ...] = ("weights", "weights_sha256", "config", "selection", "mode", "combine")
 
 F = TypeVar("F", bound=Callable[..., Any])
 
 
 def method_options(f: F) -> F:
-    """Add ``--weights``, ``--weights-sha256``, ``--config``, ``--selection`` and ``--mode`` to a command running a method."""
+    """Add ``--weights``, ``--weights-sha256``, ``--config``, ``--selection``, ``--mode`` and ``--combine`` to a command running a method."""
     decorators = [
         click.option(
             "--weights",
@@ -101,6 +101,13 @@ def method_options(f: F) -> F:
             "--mode",
             default=None,
             help="Mode, for the methods that have several (see odmd-bench baseline --list).",
+        ),
+        click.option(
+            "--combine",
+            default=None,
+            help="How a method combines its per-axis solutions, for the methods that have several: "
+            "mean (the paper) or lsq (least squares, weighted by each axis's signal; parallax, "
+            "expansion).",
         ),
     ]
     for decorate in reversed(decorators):

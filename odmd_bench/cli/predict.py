@@ -70,6 +70,12 @@ def error_summary(truth: Any, depth: Any) -> str:
     "(see odmd-bench baseline --list).",
 )
 @click.option(
+    "--normalized-boxes",
+    is_flag=True,
+    default=False,
+    help="The boxes are fractions of the image (0 to 1), not pixels: multiplied by W and H.",
+)
+@click.option(
     "-o",
     "--output",
     default=None,
@@ -81,19 +87,22 @@ def predict(
     method_name: str,
     image_size: tuple[float, float],
     intrinsics: tuple[float, float, float, float] | None,
+    normalized_boxes: bool,
     output: str | None,
     weights: Path | None,
     weights_sha256: str | None,
     config: str | None,
     selection: str | None,
     mode: str | None,
+    combine: str | None,
 ) -> None:
     """Estimate the depth at the last observation of every sequence in SEQUENCES.csv.
 
     One row per observation with the columns sequence, observation, x1, y1, x2, y2
     (box corners in pixels; all four empty: missed detection), cam_x, cam_y, cam_z
-    (camera position in metres, camera axes, any fixed origin) and an optional depth
-    (the truth, metres). Observations are ordered by 'observation'; the last is
+    (camera position in metres, camera axes, any fixed origin), an optional depth
+    (the truth, metres) and the optional orientation cam_qx, cam_qy, cam_qz, cam_qw (a
+    unit quaternion, camera to fixed frame; needs --intrinsics). Observations are ordered by 'observation'; the last is
     estimated. SEQUENCES.csv may be '-' (standard input). Writes sequence,depth,
     observations,detections (and true_depth,percent_error where truth is given);
     prints the error summary where truth is given. See docs/own-data.md.
@@ -116,10 +125,16 @@ def predict(
         raise UsageError(f"-o {target} is the sequences file being read; write the estimates elsewhere")
     method = methods.load(method_name)
     options = given_options(
-        method, weights=weights, weights_sha256=weights_sha256, config=config, selection=selection, mode=mode
+        method,
+        weights=weights,
+        weights_sha256=weights_sha256,
+        config=config,
+        selection=selection,
+        mode=mode,
+        combine=combine,
     )
 
-    seqs = read_sequences(sequences, image_size, intrinsics)
+    seqs = read_sequences(sequences, image_size, intrinsics, normalized_boxes=normalized_boxes)
     result = predict_sequences(seqs, method, **options)
     text = format_depths(result)
     to_stdout = output == "-"
@@ -148,7 +163,12 @@ def predict(
     say(f"  fallbacks: {', '.join(fallbacks) or 'none'}" + "".join(f"; {n}" for n in notes))
     if seqs.ignored_columns:
         say(f"  ignored columns: {', '.join(seqs.ignored_columns)}")
-    for line in seqs.warnings:
+    if seqs.oriented:
+        say(
+            f"  orientation: turns of up to {float(seqs.turn.max()):.3g} degrees, taken into account; "
+            "depths along each sequence's last optical axis"
+        )
+    for line in seqs.warnings + result.warnings:
         say(f"warning: {line}")
     nonpositive = int((result.depth <= 0).sum())
     if nonpositive:

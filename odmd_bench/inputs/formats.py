@@ -17,5 +17,8 @@ SEQUENCE_COLUMNS: tuple[str, ...] = (
     "cam_y",
     "cam_z",
 )
+#: The camera's orientation, a unit quaternion x, y, z, w (Hamilton, as TUM trajectories):
+#: all four or none.
+ORIENTATION_COLUMNS: tuple[str, ...] = ("cam_qx", "cam_qy", "cam_qz", "cam_qw")
 #: Columns read when present; any other column is ignored.
-OPTIONAL_SEQUENCE_COLUMNS: tuple[str, ...] = ("depth",)
+OPTIONAL_SEQUENCE_COLUMNS: tuple[str, ...] = ("depth", *ORIENTATION_COLUMNS)

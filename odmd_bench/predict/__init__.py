@@ -19,6 +19,7 @@ from odmd_bench.data.examples import Examples
 from odmd_bench.errors import DataError, UsageError
 from odmd_bench.evaluation.metrics import percent_error
 from odmd_bench.inputs.problems import SHOWN, show
+from odmd_bench.predict.checks import method_warnings, scale_warnings
 from odmd_bench.predict.sequences import Sequences, number_cell, text_cell
 
 
@@ -35,7 +36,8 @@ def select_observations(examples: Examples, count: int) -> Examples:
 
     Returns:
         The same examples with ``count`` observations (``examples`` itself when
-        ``n_obs == count``); per-observation ``extras`` are dropped.
+        ``n_obs == count``); ``extras`` with an observation axis are indexed, the
+        others dropped.
 
     Raises:
         DataError: fewer than ``count`` observations.
@@ -62,6 +64,7 @@ def select_observations(examples: Examples, count: int) -> Examples:
         camera=examples.camera[:, idx],
         depth=examples.depth.copy(),
         observation_depth=None if examples.observation_depth is None else examples.observation_depth[:, idx],
+        extras={k: v[:, idx] for k, v in examples.extras.items() if v.ndim >= 2 and v.shape[1] == n_obs},
         attrs=dict(examples.attrs),
     )
 
@@ -85,6 +88,8 @@ class SequenceDepths:
         counts: the method's counted fallbacks, summed over the sequences, and what it
             says of its run (strings).
         method: the method's name.
+        warnings: what the checks of :mod:`odmd_bench.predict.checks` found (the scale
+            of the data, the method's validity on them), one line each.
     """
 
     names: tuple[str, ...]
@@ -94,6 +99,7 @@ class SequenceDepths:
     detections: np.ndarray
     counts: dict[str, int | str]
     method: str
+    warnings: tuple[str, ...] = ()
 
 
 def method_observations(method: Any) -> int | None:
@@ -150,12 +156,30 @@ def predict_sequences(sequences: Sequences, method: str | Any, **options: Any) -
                 + (", ..." if short.sum() > SHOWN else "")
                 + f" (longer sequences give {wanted} chosen evenly, the first and the last kept)"
             )
+    warnings = scale_warnings(ex for _, ex in sequences.groups)
     for index, ex in sequences.groups:
         if wanted is not None:
             ex = select_observations(ex, wanted)
+        for line in method_warnings(m, ex.without_truth(), options):
+            if line not in warnings:
+                warnings.append(line)
+        run_on, run_options = ex, options
+        rotation = ex.extras.get("rotation")
+        if rotation is not None and _accepts(m, "rotation"):
+            # The method models the turn itself: the boxes as seen, and the rotations.
+            run_on = Examples(
+                boxes=ex.extras["turned_boxes"],
+                detected=ex.detected,
+                camera=ex.camera,
+                depth=ex.depth,
+                attrs=dict(ex.attrs),
+            )
+            run_options = {**options, "rotation": rotation}
         try:
             d, c = (
-                m.run(ex, **options) if hasattr(m, "run") else m.predict_report(ex.without_truth(), **options)
+                m.run(run_on, **run_options)
+                if hasattr(m, "run")
+                else m.predict_report(run_on.without_truth(), **run_options)
             )
         except DataError as e:
             if "intrinsics" in e.message and ex.attrs.get("fx") is None:
@@ -181,6 +205,18 @@ def predict_sequences(sequences: Sequences, method: str | Any, **options: Any) -
         detections=detections,
         counts=counts,
         method=name,
+        warnings=tuple(warnings),
+    )
+
+
+def _accepts(method: Any, keyword: str) -> bool:
+    """Whether a loaded method (or a plain module) takes ``keyword``."""
+    if hasattr(method, "accepts"):
+        return bool(method.accepts(keyword))
+    return all(
+        keyword in inspect.signature(getattr(method, f)).parameters
+        for f in ("predict", "predict_report")
+        if hasattr(method, f)
     )
 
 

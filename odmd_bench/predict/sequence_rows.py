@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from odmd_bench.inputs.formats import OPTIONAL_SEQUENCE_COLUMNS as OPTIONAL_COLUMNS
+from odmd_bench.inputs.formats import ORIENTATION_COLUMNS
 from odmd_bench.inputs.formats import SEQUENCE_COLUMNS as REQUIRED_COLUMNS
 from odmd_bench.inputs.problems import SHOWN, Problems, show
 from odmd_bench.inputs.records import CsvSyntaxError, csv_records
@@ -53,6 +54,11 @@ class Rows:
     sequence: np.ndarray  # (M,) object, stripped names
     numbers: np.ndarray  # (M, 8) observation, x1, y1, x2, y2, cam_x, cam_y, cam_z; NaN: empty
     depth: np.ndarray | None  # (M,) NaN: empty
+    orientation: np.ndarray | None = None  # (M, 4) cam_qx, cam_qy, cam_qz, cam_qw; NaN: empty
+
+
+#: A quaternion is refused when its length differs from 1 by more than this.
+UNIT_TOLERANCE = 1e-3
 
 
 def header_columns(data: bytes, problems: Problems) -> tuple[list[str], dict[str, int]] | None:
@@ -71,6 +77,14 @@ def header_columns(data: bytes, problems: Problems) -> tuple[list[str], dict[str
         if name in cols:
             problems.add(f"column {name!r} appears more than once in the header")
         cols.setdefault(name, i)
+    given = [c for c in ORIENTATION_COLUMNS if c in cols]
+    if given and len(given) < len(ORIENTATION_COLUMNS):
+        absent = [c for c in ORIENTATION_COLUMNS if c not in cols]
+        problems.add(
+            f"the camera orientation is given in part: the header has {', '.join(given)} but not "
+            f"{', '.join(absent)} (give all four of {', '.join(ORIENTATION_COLUMNS)}, a unit "
+            "quaternion, or none)"
+        )
     missing = [c for c in REQUIRED_COLUMNS if c not in cols]
     if missing:
         import difflib
@@ -87,7 +101,7 @@ def header_columns(data: bytes, problems: Problems) -> tuple[list[str], dict[str
                     problems.add(f"the header {show(header[0])} seems to use {name} as separator; use commas")
                     break
         problems.add(
-            f"expected the columns {', '.join(REQUIRED_COLUMNS)} (optional: depth; others are ignored); "
+            f"expected the columns {', '.join(REQUIRED_COLUMNS)} (optional: depth, and cam_qx, cam_qy, cam_qz, cam_qw together; others are ignored); "
             f"the header is {show(','.join(header), 120)}"
         )
     return None if problems else (header, cols)
@@ -110,7 +124,7 @@ def fast_rows(data: bytes, header: list[str], cols: dict[str, int]) -> Rows | No
         return None
     import pandas as pd
 
-    used = ["sequence", *_NUMERIC] + (["depth"] if "depth" in cols else [])
+    used = ["sequence", *_NUMERIC] + (["depth"] if "depth" in cols else []) + _orientation(cols)
     dtypes: dict[int, Any] = {i: object for i in range(len(header))}  # ignored columns: any text
     dtypes.update({cols[c]: np.float64 for c in used if c != "sequence"})
     try:
@@ -145,7 +159,13 @@ def fast_rows(data: bytes, header: list[str], cols: dict[str, int]) -> Rows | No
     for j, c in enumerate(_NUMERIC):
         numbers[:, j] = df[cols[c]].to_numpy(dtype=np.float64)
     depth = df[cols["depth"]].to_numpy(dtype=np.float64) if "depth" in cols else None
-    return Rows(np.arange(m) + 2, stripped[codes], numbers, depth)
+    quat = [df[cols[c]].to_numpy(dtype=np.float64) for c in _orientation(cols)]
+    return Rows(np.arange(m) + 2, stripped[codes], numbers, depth, np.stack(quat, axis=1) if quat else None)
+
+
+def _orientation(cols: dict[str, int]) -> list[str]:
+    """The orientation columns where the header has all four (a part is refused by the header's check)."""
+    return list(ORIENTATION_COLUMNS) if all(c in cols for c in ORIENTATION_COLUMNS) else []
 
 
 def careful_rows(text: str, header: list[str], cols: dict[str, int], problems: Problems) -> Rows:
@@ -154,8 +174,10 @@ def careful_rows(text: str, header: list[str], cols: dict[str, int], problems: P
     names: list[str] = []
     numbers: list[list[float]] = []
     depths: list[float] = []
+    quats: list[list[float]] = []
     width = len(header)
     has_depth = "depth" in cols
+    quat_cols = _orientation(cols)
     stream = csv_records(text)
     try:
         next(stream, None)  # the header: line 1, not blank (header_columns read it)
@@ -169,6 +191,7 @@ def careful_rows(text: str, header: list[str], cols: dict[str, int], problems: P
             row = []
             for c in _NUMERIC + (("depth",) if has_depth else ()):
                 row.append(_cell(cells[cols[c]], c, line, problems))
+            quats.append([_cell(cells[cols[c]], c, line, problems) for c in quat_cols])
             lines.append(line)
             names.append(cells[cols["sequence"]])
             numbers.append(row[: len(_NUMERIC)])
@@ -182,6 +205,7 @@ def careful_rows(text: str, header: list[str], cols: dict[str, int], problems: P
         np.array(names, dtype=object),
         arr,
         np.array(depths, dtype=np.float64) if has_depth else None,
+        np.array(quats, dtype=np.float64).reshape(-1, 4) if quat_cols else None,
     )
 
 
@@ -231,6 +255,18 @@ def check_rows(rows: Rows, problems: Problems) -> None:
                 "most boxes end before they start, and their x2 and y2 are all positive: they look "
                 "like x, y, width, height; the columns x1, y1, x2, y2 are corners (x2 = x + width, "
                 "y2 = y + height)"
+            )
+        if rows.orientation is not None:
+            q = rows.orientation
+            for j, c in enumerate(ORIENTATION_COLUMNS):
+                problems.add_lines(f"{c} is empty", np.isnan(q[:, j]), lines)
+                problems.add_lines(f"{c} is not finite", np.isinf(q[:, j]), lines)
+            norm = np.sqrt((q * q).sum(axis=1))
+            problems.add_lines(
+                f"orientation not a unit quaternion (its length differs from 1 by more than {UNIT_TOLERANCE:g})",
+                np.isfinite(norm) & ~(np.abs(norm - 1) <= UNIT_TOLERANCE),
+                lines,
+                np.round(norm, 6),
             )
         if rows.depth is not None:
             d = rows.depth

@@ -14,6 +14,8 @@ column                  meaning
                         the camera's (the camera translates without rotating)
 ``depth`` (optional)    the true depth along the optical axis, metres, where known; the
                         last observation's is the truth the estimate is scored against
+``cam_qx, cam_qy,``     (optional, all four or none) the camera's orientation in the
+``cam_qz, cam_qw``      fixed frame, a unit quaternion (:mod:`odmd_bench.predict.orientation`)
 ======================  ================================================================
 
 Rows may come in any order; other columns are ignored. Boxes and camera positions are
@@ -42,11 +44,26 @@ from typing import Any
 import numpy as np
 
 from odmd_bench.data.examples import Examples
-from odmd_bench.data.pixels import boxes_to_corners, image_size_of, intrinsics_of
+from odmd_bench.data.pixels import (
+    boxes_to_corners,
+    corners_to_boxes,
+    image_size_of,
+    intrinsics_of,
+)
 from odmd_bench.errors import UsageError, ValidationError
-from odmd_bench.inputs.problems import Problems
+from odmd_bench.inputs.problems import SHOWN, Problems, show
 from odmd_bench.inputs.records import decode
 from odmd_bench.inputs.source import read_source, stdin_bytes
+from odmd_bench.predict.checks import fraction_boxes_problem
+from odmd_bench.predict.orientation import (
+    NO_TURN_DEGREES,
+    Carry,
+    carry_boxes,
+    positions_in_last,
+    relative_rotations,
+    rotation_matrices,
+    turn_degrees,
+)
 from odmd_bench.predict.sequence_rows import (
     OPTIONAL_COLUMNS,
     REQUIRED_COLUMNS,
@@ -151,11 +168,17 @@ class Sequences:
         n_obs: (N,) int, observations per sequence.
         groups: one ``(index, examples)`` per distinct ``n_obs`` (ascending):
             ``index`` (k,) the positions in ``names`` of the ``k`` sequences in
-            ``examples``.
+            ``examples``. Where the camera turns, the boxes are carried into the last
+            observation's orientation, and ``examples.extras`` holds ``rotation``
+            (k, n_obs, 3, 3), each observation's camera axes in the last one's, and
+            ``turned_boxes``, the boxes as seen (for a method that models the turn).
         source: where they were read from.
         ignored_columns: columns of the file that were not read.
         attrs: metadata shared by every group's examples (``source_file``).
         warnings: legal but suspicious things (boxes wholly outside the image), one line each.
+        turn: (N,) the largest turn of the camera (degrees) between an observation and
+            the last, zeros without the orientation columns.
+        oriented: whether the file gives the camera's orientation.
     """
 
     names: tuple[str, ...]
@@ -165,6 +188,8 @@ class Sequences:
     ignored_columns: tuple[str, ...] = ()
     attrs: dict[str, Any] = field(default_factory=dict)
     warnings: tuple[str, ...] = ()
+    turn: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    oriented: bool = False
 
     def __len__(self) -> int:
         return len(self.names)
@@ -189,6 +214,9 @@ def read_sequences(
     source: str | os.PathLike[str] | bytes,
     image_size: Sequence[float],
     intrinsics: Sequence[float] | None = None,
+    *,
+    normalized_boxes: bool = False,
+    carry: Carry = "midpoints",
 ) -> Sequences:
     """Read a sequences CSV (module docstring) strictly, naming every problem at once.
 
@@ -196,10 +224,18 @@ def read_sequences(
         source: a path, ``"-"`` for standard input, or the file's bytes; gzip-compressed
             content (``.csv.gz``) is decompressed.
         image_size: ``(width, height)`` of the images the boxes are in, pixels.
-        intrinsics: ``(fx, fy, cx, cy)`` in pixels, for the methods that need them.
+        intrinsics: ``(fx, fy, cx, cy)`` in pixels, for the methods that need them, and
+            to carry the boxes of a turning camera.
+        normalized_boxes: the boxes are fractions of the image (0 to 1), multiplied by
+            the image width and height here; boxes that look like fractions are refused
+            without it (:mod:`odmd_bench.predict.checks`).
+        carry: how the boxes of a turning camera are carried into the last
+            observation's orientation (:mod:`odmd_bench.predict.orientation`).
 
     Returns:
-        :class:`Sequences`, each sequence's observations ordered by ``observation``.
+        :class:`Sequences`, each sequence's observations ordered by ``observation``;
+        with the orientation columns, the boxes are carried into the last observation's
+        orientation and the camera positions are in its axes.
 
     Raises:
         ValidationError: the file cannot be read as sequences; one line per kind of
@@ -235,30 +271,60 @@ def read_sequences(
         raise ValidationError(title, ["the file has a header but no rows; expected one row per observation"])
     check_rows(rows, problems)
     names, order, starts, counts = group(rows, problems)
+    if not problems:
+        fraction = fraction_boxes_problem(rows.numbers[:, 1:5], size, normalized_boxes)
+        if fraction is not None:
+            problems.add(fraction)
     if problems:
         raise ValidationError(title, problems.lines())
+    if normalized_boxes:
+        rows.numbers[:, [1, 3]] *= size[0]
+        rows.numbers[:, [2, 4]] *= size[1]
 
     attrs: dict[str, Any] = {"source_file": where}
     groups = []
+    turn = np.zeros(len(names))
+    unturned: list[str] = []
     for n_obs in np.unique(counts).tolist():
         index = np.flatnonzero(counts == n_obs)
         take = order[starts[index][:, None] + np.arange(n_obs)]
         num = rows.numbers[take]
+        corners, camera = num[:, :, 1:5], num[:, :, 5:8]
+        extras: dict[str, np.ndarray] = {}
+        if rows.orientation is not None:
+            r = rotation_matrices(rows.orientation[take])
+            rel = relative_rotations(r)
+            turn[index] = turn_degrees(rel).max(axis=1)
+            camera = positions_in_last(camera, r)
+            if (turn[index] > NO_TURN_DEGREES).any():
+                if k is None:
+                    unturned += [str(names[i]) for i in index[turn[index] > NO_TURN_DEGREES]]
+                else:
+                    extras = {"rotation": rel, "turned_boxes": corners_to_boxes(corners, size)[0]}
+                    corners = carry_boxes(corners, rel, k, carry)
         truth = None
         obs_depth = None
         if rows.depth is not None:
             obs_depth = rows.depth[take]
             truth = obs_depth[:, -1]
         ex = Examples.from_pixels(
-            num[:, :, 1:5],
-            num[:, :, 5:8],
+            corners,
+            camera,
             size,
             truth,
             intrinsics=k,
             observation_depth=obs_depth,
             attrs=attrs,
         )
+        ex.extras.update(extras)
         groups.append((index, ex))
+    if unturned:
+        raise UsageError(
+            f"the camera turns (cam_qx, cam_qy, cam_qz, cam_qw) in {len(unturned)} sequences, by up to "
+            f"{turn.max():.3g} degrees (first: {', '.join(show(s) for s in unturned[:SHOWN])}); carrying "
+            "their boxes into the last observation's orientation needs the camera's intrinsics: give "
+            "--intrinsics FX FY CX CY (intrinsics= from Python)"
+        )
     ignored = tuple(h for h in header if h not in REQUIRED_COLUMNS + OPTIONAL_COLUMNS)
     return Sequences(
         names=tuple(str(s) for s in names.tolist()),
@@ -267,8 +333,24 @@ def read_sequences(
         source=where,
         ignored_columns=ignored,
         attrs=attrs,
-        warnings=_outside_image(rows.numbers[:, 1:5], rows.lines, size),
+        warnings=_outside_image(rows.numbers[:, 1:5], rows.lines, size) + _pose_like(ignored),
+        turn=turn,
+        oriented=rows.orientation is not None,
     )
+
+
+def _pose_like(ignored: tuple[str, ...]) -> tuple[str, ...]:
+    """A warning for each ignored column whose name looks like an orientation or a pose."""
+    out = []
+    for name in ignored:
+        low = name.lower()
+        if low.startswith(("q", "rot")) or any(w in low for w in ("quat", "roll", "pitch", "yaw")):
+            out.append(
+                f"column {show(name)} looks like a camera orientation but is not read: the orientation is "
+                "read from cam_qx, cam_qy, cam_qz, cam_qw (a unit quaternion, x y z w, rotating camera "
+                "coordinates into the fixed frame; docs/own-data.md)"
+            )
+    return tuple(out)
 
 
 def _outside_image(corners: np.ndarray, lines: np.ndarray, size: tuple[float, float]) -> tuple[str, ...]:

@@ -1,0 +1,137 @@
+"""Each method's accuracy on realistic scenes (:mod:`odmd_bench.predict.scenes`): the tables of ``docs/own-data.md``.
+
+``python -m odmd_bench.predict.accuracy`` prints them; ``tests/test_own_scenes.py``
+checks that the document holds exactly what this prints. Every scene set is seeded, and
+every method runs the way ``odmd-bench predict`` runs it (the sequences CSV read back
+with :func:`~odmd_bench.predict.sequences.read_sequences`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from odmd_bench.predict.scenes import IMAGE_SIZE, INTRINSICS, Motion, Shape, make_scenes
+from odmd_bench.predict.sequences import read_sequences
+
+#: Sequences per scene set (cars, people and signs in turn).
+N_SCENES = 60
+
+
+@dataclass(frozen=True)
+class SceneSet:
+    """One row of the accuracy table."""
+
+    label: str
+    motion: Motion
+    turn: float
+    noise: bool
+    seed: int
+
+
+SCENE_SETS: tuple[SceneSet, ...] = (
+    SceneSet("ground (x, z), no turn", "ground", 0.0, False, 11),
+    SceneSet("forward (z), no turn", "forward", 0.0, False, 12),
+    SceneSet("free (x, y, z), no turn", "free", 0.0, False, 13),
+    SceneSet("ground, turn 15°", "ground", 15.0, False, 14),
+    SceneSet("free, turn 15°", "free", 15.0, False, 15),
+    SceneSet("ground, no turn, noisy", "ground", 0.0, True, 21),
+    SceneSet("forward, no turn, noisy", "forward", 0.0, True, 22),
+    SceneSet("free, no turn, noisy", "free", 0.0, True, 23),
+    SceneSet("ground, turn 15°, noisy", "ground", 15.0, True, 24),
+    SceneSet("free, turn 15°, noisy", "free", 15.0, True, 25),
+)
+
+#: The table's columns: a label, the method and its options.
+METHODS: tuple[tuple[str, str, dict[str, Any]], ...] = (
+    ("box-ls", "box-ls", {}),
+    ("expansion", "expansion", {}),
+    ("parallax", "parallax", {}),
+    ("parallax --combine lsq", "parallax", {"combine": "lsq"}),
+    ("robust", "robust", {}),
+    ("dbox", "dbox", {}),
+)
+
+#: Turns (degrees) of the carry table.
+TURNS: tuple[float, ...] = (0.0, 5.0, 10.0, 15.0, 20.0)
+
+
+def percent_errors(
+    scene: SceneSet | tuple[Motion, float, bool, int],
+    method: str,
+    options: dict[str, Any] | None = None,
+    *,
+    carry: str = "midpoints",
+    shape: Shape = "billboard",
+    n: int = N_SCENES,
+) -> np.ndarray:
+    """(n,) percent errors of ``method`` on a scene set, run as ``predict`` runs it."""
+    from odmd_bench.predict import predict_sequences
+
+    if isinstance(scene, SceneSet):
+        motion, turn, noise, seed = scene.motion, scene.turn, scene.noise, scene.seed
+    else:
+        motion, turn, noise, seed = scene
+    s = make_scenes(n, motion, turn=turn, noise=noise, rng=seed, shape=shape)
+    seqs = read_sequences(s.csv().encode(), IMAGE_SIZE, INTRINSICS, carry=carry)  # type: ignore[arg-type]
+    result = predict_sequences(seqs, method, **(options or {}))
+    return np.asarray(np.abs(result.depth / result.truth - 1) * 100)
+
+
+def _cell(err: np.ndarray) -> str:
+    return f"{err.mean():.2f} ({err.max():.1f})"
+
+
+def accuracy_table() -> str:
+    """Mean (max) percent error of each method on each scene set, as a Markdown table."""
+    lines = [
+        "| scenes | " + " | ".join(f"`{label}`" for label, _, _ in METHODS) + " |",
+        "| --- | " + " | ".join("---" for _ in METHODS) + " |",
+    ]
+    for scene in SCENE_SETS:
+        cells = []
+        for _, method, options in METHODS:
+            if method == "parallax" and scene.motion == "forward":
+                cells.append("n/a")
+                continue
+            cells.append(_cell(percent_errors(scene, method, options)))
+        lines.append(f"| {scene.label} | " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def carry_table() -> str:
+    """Box_LS's mean (max) percent error against the turn for each way of carrying boxes."""
+    rows = [
+        ("billboard", "midpoints"),
+        ("billboard", "centre"),
+        ("billboard", "corners"),
+        ("plane", "midpoints"),
+        ("plane", "centre"),
+        ("plane", "corners"),
+    ]
+    lines = [
+        "| object | carry | " + " | ".join(f"{t:g}°" for t in TURNS) + " |",
+        "| --- | --- | " + " | ".join("---" for _ in TURNS) + " |",
+    ]
+    for shape, carry in rows:
+        cells = [
+            _cell(percent_errors(("ground", t, False, 31), "box-ls", carry=carry, shape=shape))  # type: ignore[arg-type]
+            for t in TURNS
+        ]
+        lines.append(f"| {shape} | `{carry}` | " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def main() -> None:
+    """Print both tables."""
+    print(accuracy_table())
+    print(carry_table(), end="")
+
+
+if __name__ == "__main__":
+    main()
+
+
+__all__ = ["METHODS", "N_SCENES", "SCENE_SETS", "TURNS", "accuracy_table", "carry_table", "percent_errors"]
