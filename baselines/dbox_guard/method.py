@@ -75,23 +75,42 @@ def load_parameters(path: Path = PARAMETERS_FILE) -> tuple[dict[str, Parameters]
     return chosen, parameters_from(overall, f"{path}: overall")
 
 
-def run(examples: Examples, params: Parameters, selection: str) -> tuple[np.ndarray, dict[str, int | str]]:
-    """The guard with ``params`` over DBox ``p-z`` (``selection``: overall or per-set)."""
+def details(
+    examples: Examples, params: Parameters, selection: str
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, int | str]]:
+    """The guard with ``params`` over DBox ``p-z`` (``selection``: overall or per-set).
+
+    Returns:
+        (depths (N,), repaired (N,) bool: a wrong start was flagged, capped (N,) bool:
+        the depth was lowered to the cap, DBox's report).
+    """
     flagged = flag_wrong_starts(examples.boxes, examples.detected, params.tau)
     fixed = repair(examples, flagged)
     depth, report = dbox.predict_report(fixed, config="p-z", selection=selection)
     if params.alpha:
         depth = blend(depth, box_ls.predict(fixed), params.alpha)
     capped = cap(depth, travel(examples), params.cap)
-    counts: dict[str, int | str] = {
-        "n": len(examples),
-        "no_detection": int(report["no_detection"]),
-        "wrong_start": int(flagged.any(axis=1).sum()),
-        "capped": int((capped < depth).sum()),
-    }
-    for key in ("selection", "weights", "weights_sha256"):
-        counts[key] = report[key]
-    return capped, counts
+    return capped, flagged.any(axis=1), capped < depth, report
+
+
+def choose_parameters(examples: Examples) -> tuple[Parameters, str]:
+    """The parameters and DBox selection for ``examples``: the set's, else the overall ones.
+
+    Raises:
+        DataError: the data are not z-only camera motion (an ODMD benchmark, or x, y
+            offsets beyond 10 % of z: the guard assumes forward motion along z), or
+            the parameters file is unreadable.
+    """
+    if len(examples) and dbox.default_config(examples) != "p-z":
+        raise DataError(
+            "dbox-guard is for z-axis camera motion (ODMS); these data move the camera in x and y "
+            "too (or are an ODMD benchmark): run dbox instead"
+        )
+    per_set, overall = load_parameters()
+    name = examples.attrs.get("set")
+    if isinstance(name, str) and name in per_set:
+        return per_set[name], "per-set"
+    return overall, "overall"
 
 
 def predict_report(examples: Examples) -> tuple[np.ndarray, dict[str, int | str]]:
@@ -106,19 +125,19 @@ def predict_report(examples: Examples) -> tuple[np.ndarray, dict[str, int | str]
         the DBox weights that ran.
 
     Raises:
-        DataError: the data are not z-only camera motion (an ODMD benchmark, or x, y
-            offsets beyond 10 % of z): the guard assumes forward motion along z.
+        DataError: as :func:`choose_parameters`.
     """
-    if len(examples) and dbox.default_config(examples) != "p-z":
-        raise DataError(
-            "dbox-guard is for z-axis camera motion (ODMS); these data move the camera in x and y "
-            "too (or are an ODMD benchmark): run dbox instead"
-        )
-    per_set, overall = load_parameters()
-    name = examples.attrs.get("set")
-    if isinstance(name, str) and name in per_set:
-        return run(examples, per_set[name], "per-set")
-    return run(examples, overall, "overall")
+    params, selection = choose_parameters(examples)
+    depth, repaired, capped, report = details(examples, params, selection)
+    counts: dict[str, int | str] = {
+        "n": len(examples),
+        "no_detection": int(report["no_detection"]),
+        "wrong_start": int(repaired.sum()),
+        "capped": int(capped.sum()),
+    }
+    for key in ("selection", "weights", "weights_sha256"):
+        counts[key] = report[key]
+    return depth, counts
 
 
 def predict(examples: Examples) -> np.ndarray:
