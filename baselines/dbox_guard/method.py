@@ -90,7 +90,7 @@ def details(
     if params.alpha:
         depth = blend(depth, box_ls.predict(fixed), params.alpha)
     capped = cap(depth, travel(examples), params.cap)
-    return capped, flagged.any(axis=1), capped < depth, report
+    return capped, np.asarray(flagged.any(axis=1)), np.asarray(capped < depth), report
 
 
 def choose_parameters(examples: Examples) -> tuple[Parameters, str]:

@@ -48,7 +48,7 @@ def flag_wrong_starts(boxes: np.ndarray, detected: np.ndarray, tau: float | None
     drop = w[:, 1 : k + 1] < tau * w[:, :k]  # NaN compares False: never flagged
     last = k - 1 - np.argmax(drop[:, ::-1], axis=1)
     flagged[:] = np.arange(n_obs)[None, :] <= last[:, None]
-    flagged &= drop.any(axis=1)[:, None]
+    flagged &= np.asarray(drop.any(axis=1))[:, None]
     return flagged
 
 
