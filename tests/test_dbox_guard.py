@@ -182,6 +182,18 @@ def test_val_numbers_of_the_record(paper_data_dir: Path) -> None:
     assert record["candidates"][record["selected"]]["val_all"] < np.mean(
         list(record["dbox_p_z_per_set_val"].values())
     )
+    # docs/odms-guard.md: the Robot wrong starts, before and after the repair
+    from odmd_bench_baselines import dbox
+    from odmd_bench_baselines.dbox_guard.method import details
+
+    robot = sets["robot"]
+    guarded, repaired, capped, _ = details(robot.without_truth(), *choose_parameters(robot))
+    base = odmd_bench.percent_error(
+        robot.depth, dbox.predict(robot.without_truth(), config="p-z", selection="per-set")
+    )
+    after = odmd_bench.percent_error(robot.depth, guarded)
+    assert (int(repaired.sum()), int((capped & ~repaired).sum())) == (21, 43)
+    assert (round(float(base[repaired].mean()), 2), round(float(after[repaired].mean()), 2)) == (35.35, 6.98)
 
 
 @pytest.mark.slow
@@ -192,3 +204,29 @@ def test_selection_reproduces_the_shipped_record(paper_data_dir: Path) -> None:
     record = json.loads(dbox_guard.PARAMETERS_FILE.read_text())
     again = json.loads(json.dumps(select.select(paper_data_dir)))
     assert again == record
+
+
+def test_the_analysis_numbers_of_the_docs(paper_data_dir: Path) -> None:
+    """docs/odms-guard.md's account of the test tail, from the committed board entries."""
+    from odmd_bench_baselines.dbox_guard.analysis import test_errors
+
+    root = Path(__file__).resolve().parents[1] / "leaderboard"
+    errors = test_errors(root, paper_data_dir)
+    guard, base = errors["DBox guard"], errors["DBox_p^z per-set"]
+    stated = {  # set: (mean, median, max, worst 1 % share) of the guard
+        "normal": (9.14, 6.28, 92.1, 0.060),
+        "robot": (11.43, 6.01, 794.7, 0.169),
+        "driving": (25.78, 17.70, 484.5, 0.092),
+    }
+    for s, (mean, median, worst, share) in stated.items():
+        t = tail(guard[s])
+        assert (round(t["mean"], 2), round(t["median"], 2), round(t["max"], 1)) == (mean, median, worst), s
+        assert round(t["top1_share"], 3) == share, s
+    assert round(tail(base["robot"])["top1_share"], 3) == 0.214
+    over = guard["robot"] > 100
+    assert int(over.sum()) == 23 and int((base["robot"] > 100).sum()) == 36
+    run = np.zeros(over.size, bool)
+    run[238:330] = True
+    assert int((over & run).sum()) == 20
+    n = over.size
+    assert (round(guard["robot"][run].sum() / n, 2), round(base["robot"][run].sum() / n, 2)) == (2.85, 3.96)
