@@ -22,12 +22,7 @@ import numpy as np
 
 import odmd_bench
 
-#: The compared methods: registered name and leaderboard entry.
-METHODS: dict[str, tuple[str, dict[str, str]]] = {
-    "DBox guard": ("dbox-guard", {}),
-    "DBox_p^z per-set": ("dbox", {"config": "p-z", "selection": "per-set"}),
-    "Box_LS": ("box-ls", {}),
-}
+#: The compared methods: label -> leaderboard entry.
 ENTRIES = {"DBox guard": "dbox-guard", "DBox_p^z per-set": "dbox-p-z-per-set", "Box_LS": "box-ls"}
 BENCHMARK = "odms-detection"
 
@@ -55,18 +50,19 @@ def tail(errors: np.ndarray) -> dict[str, float]:
 
 
 def val_errors(data_dir: str | Path | None) -> dict[str, dict[str, np.ndarray]]:
-    """Per method and set, the val percent errors."""
-    from odmd_bench import methods
+    """Per method and set, the val percent errors (each method sees no true depth)."""
+    from odmd_bench_baselines import box_ls, dbox, dbox_guard
 
+    predict = {
+        "DBox guard": dbox_guard.predict,
+        "DBox_p^z per-set": lambda ex: dbox.predict(ex, config="p-z", selection="per-set"),
+        "Box_LS": box_ls.predict,
+    }
     sets = odmd_bench.load_split("val", BENCHMARK, data_dir)
-    out: dict[str, dict[str, np.ndarray]] = {}
-    for label, (name, options) in METHODS.items():
-        method = methods.load(name)
-        out[label] = {}
-        for s, ex in sets.items():
-            depth, _ = method.run(ex, **options)
-            out[label][s] = odmd_bench.percent_error(ex.depth, depth)
-    return out
+    return {
+        label: {s: odmd_bench.percent_error(ex.depth, run(ex.without_truth())) for s, ex in sets.items()}
+        for label, run in predict.items()
+    }
 
 
 def test_errors(root: Path, data_dir: str | Path | None) -> dict[str, dict[str, np.ndarray]]:
