@@ -36,7 +36,8 @@ REQUIRED_FIELDS: dict[str, str] = {
 #: Fields an entry may have.
 OPTIONAL_FIELDS: dict[str, str] = {
     "notes": "anything else a reader should know",
-    "parameters": "the number of trained or tuned parameters (a whole number; 0 for an analytical method)",
+    "parameters": "the number of trained parameters (network weights) the command runs, a whole number; "
+    "0 for a method without trained weights",
     "speed": "{examples_per_second: a number > 0, device: the CPU or GPU model, command: the command "
     "that measured it}",
 }
