@@ -32,7 +32,7 @@ from odmd_bench.cli.options import given_options
 from odmd_bench.leaderboard import discover, read_entry
 
 REPO = Path(__file__).resolve().parents[1]
-ROUNDS = 3
+ROUNDS = 5
 RELEASE = Path(os.environ.get("ODMD_ORIGINAL") or REPO.parent / "shared" / "odmd-original")
 #: an entry's command names the user's copy of the original release so
 RELEASE_PLACEHOLDER = "ODMD/"
