@@ -5,16 +5,16 @@ Run (one core: one torch thread, OpenBLAS to one thread), with the boards' data 
 original release at ``../shared/odmd-original`` or ``ODMD_ORIGINAL``):
 
     OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 .venv/bin/pytest benchmarks/bench_entries.py \
-        --benchmark-only -p no:randomly --benchmark-columns=min,median -s
+        --benchmark-only -p no:randomly -s
 
 Each entry's own command (``odmd-bench baseline NAME --benchmark B --split test ...``) is
 read from its ``entry.yaml``, and the method's ``run`` is timed on every set of the board's
 test split with exactly those options, as ``baseline`` calls it (the sets loaded before,
-the CSV not written): examples per second = examples / best time of the rounds
-(``examples_per_s`` in ``extra_info``). ``parameters`` is the number of trained weights the
+the CSV not written): examples per second = examples / best time of the rounds. The
+rounds are interleaved (each runs every entry once), so that a machine shared with other
+work slows every entry alike; ``extra_info`` holds each entry's ``examples_per_s``. ``parameters`` is the number of trained weights the
 command uses: a DBox network's parameters times the checkpoints it runs (four with
-per-set selection); 0 for the methods without trained weights. ``-s`` prints, per entry,
-the two lines to put in its ``entry.yaml``.
+per-set selection); 0 for the methods without trained weights. ``-s`` prints them.
 """
 
 from __future__ import annotations
@@ -22,10 +22,10 @@ from __future__ import annotations
 import os
 import platform
 import shlex
+import time
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
-
-import pytest
 
 from odmd_bench import load_split, methods
 from odmd_bench.cli.options import given_options
@@ -59,7 +59,11 @@ def options(command: str) -> tuple[str, dict[str, str]]:
     given = {}
     for flag, value in zip(words[3::2], words[4::2], strict=False):
         if flag in ("--config", "--selection", "--mode", "--weights"):
-            given[flag[2:]] = str(RELEASE / value[len(RELEASE_PLACEHOLDER) :]) if value.startswith(RELEASE_PLACEHOLDER) else value
+            given[flag[2:]] = (
+                str(RELEASE / value[len(RELEASE_PLACEHOLDER) :])
+                if value.startswith(RELEASE_PLACEHOLDER)
+                else value
+            )
     return words[2], given
 
 
@@ -72,22 +76,39 @@ def trained_parameters(name: str, given: dict[str, str], sets: dict[str, Any]) -
 
     per_network = sum(p.numel() for p in DBox().parameters())
     files = {
-        dbox.resolve_weights(ex, given.get("config"), given.get("weights"), given.get("selection", "overall"))[0]
+        dbox.resolve_weights(
+            ex, given.get("config"), given.get("weights"), given.get("selection", "overall")
+        )[0]
         for ex in sets.values()
     }
     return per_network * len(files)
 
 
-@pytest.mark.parametrize("folder", OWN, ids=[f"{f.parent.name}/{f.name}" for f in OWN])
-def test_entry_speed(benchmark: Any, folder: Path) -> None:
+@dataclass
+class Run:
+    """One entry's command, ready to time: the method, its options, the board's sets."""
+
+    key: str
+    method: Any
+    kwargs: dict[str, Any]
+    sets: dict[str, Any]
+    parameters: int
+    best: float = float("inf")
+
+    @property
+    def examples(self) -> int:
+        return sum(len(ex) for ex in self.sets.values())
+
+    def __call__(self) -> None:
+        for ex in self.sets.values():
+            self.method.run(ex, **self.kwargs)
+
+
+def _prepare(folder: Path) -> Run | None:
     entry = read_entry(folder)
     name, given = options(entry.meta.command)
     if "weights" in given and not Path(given["weights"]).is_file():
-        pytest.skip(f"the original release's checkpoint is not at {given['weights']}")
-    if name == "dbox":
-        import torch
-
-        torch.set_num_threads(1)
+        return None  # the original release's checkpoint is not here
     method = methods.load(name)
     kwargs = given_options(
         method,
@@ -98,19 +119,35 @@ def test_entry_speed(benchmark: Any, folder: Path) -> None:
         mode=given.get("mode"),
     )
     sets = load_split(entry.split, entry.benchmark)
+    return Run(entry.key, method, kwargs, sets, trained_parameters(name, given, sets))
 
-    def run() -> None:
-        for ex in sets.values():
-            method.run(ex, **kwargs)
 
-    benchmark.pedantic(run, rounds=ROUNDS, iterations=1, warmup_rounds=1)
-    n = sum(len(ex) for ex in sets.values())
-    rate = n / benchmark.stats.stats.min
-    params = trained_parameters(name, given, sets)
-    benchmark.extra_info.update(
-        {"examples": n, "examples_per_s": rate, "parameters": params, "cpu": cpu_model(), "threads": 1}
-    )
-    print(
-        f"\n{entry.key}: parameters: {params}\n  speed: {{examples_per_second: {rate:.4g}, "
-        f"device: {cpu_model()!r}, command: ...}}"
-    )
+def test_entries_speed(benchmark: Any) -> None:
+    """Every entry once per round, the rounds interleaved, so that a busy machine slows all alike."""
+    import torch
+
+    torch.set_num_threads(1)
+    runs = [r for r in map(_prepare, OWN) if r is not None]
+    skipped = len(OWN) - len(runs)
+
+    def one_round() -> None:
+        for run in runs:
+            start = time.perf_counter()
+            run()
+            run.best = min(run.best, time.perf_counter() - start)
+
+    benchmark.pedantic(one_round, rounds=ROUNDS, iterations=1, warmup_rounds=1)
+    cpu = cpu_model()
+    benchmark.extra_info.update({"cpu": cpu, "threads": 1, "rounds": ROUNDS, "skipped": skipped})
+    for run in runs:
+        rate = run.examples / run.best
+        benchmark.extra_info[run.key] = {
+            "examples": run.examples,
+            "best_s": run.best,
+            "examples_per_s": rate,
+            "parameters": run.parameters,
+        }
+        print(
+            f"{run.key}: parameters {run.parameters}, {rate:.4g} examples/s ({run.examples} in {run.best:.4f} s)"
+        )
+    print(f"on {cpu}, one thread, best of {ROUNDS} interleaved rounds; {skipped} entries skipped")

@@ -90,6 +90,11 @@ def _count(value: float | None) -> str:
     return "-" if value is None else f"{value:,.0f}"
 
 
+def _counted(value: float, src: str, tag: str = "span", attrs: str = "") -> str:
+    """A count or rate of leaderboard.json (``src``: its path there), printed by :func:`_count`."""
+    return f'<{tag}{attrs} data-json="{_e(src)}" data-decimals="0">{_count(value)}</{tag}>'
+
+
 def _dig(node: Any, path: Sequence[str]) -> Any:
     for k in path:
         if not isinstance(node, dict) or k not in node:
@@ -161,7 +166,9 @@ def _vs_cell(r: SiteRow) -> str:
 
 def _parameters_cell(r: SiteRow) -> str:
     v = r.data["metadata"].get("parameters")
-    return f'<td class="num" data-k="parameters" data-v="{"" if v is None else v}">{_count(v)}</td>'
+    if v is None:
+        return '<td class="num" data-k="parameters" data-v="">-</td>'
+    return _counted(v, f"{r.src}/metadata/parameters", "td", f' class="num" data-k="parameters" data-v="{v}"')
 
 
 def _speed_cell(r: SiteRow) -> str:
@@ -169,7 +176,8 @@ def _speed_cell(r: SiteRow) -> str:
     if sp is None:
         return '<td class="num" data-k="speed" data-v="">-</td>'
     v = sp["examples_per_second"]
-    return f'<td class="num" data-k="speed" data-v="{v!r}" title="{_e(sp["device"])}">{_count(v)}</td>'
+    attrs = f' class="num" data-k="speed" data-v="{v!r}" title="{_e(sp["device"])}"'
+    return _counted(v, f"{r.src}/metadata/speed/examples_per_second", "td", attrs)
 
 
 def _columns(board: SiteBoard) -> list[Column]:
@@ -342,14 +350,14 @@ def _facts(r: SiteRow, name: str) -> str:
         ("Date", _e(meta["date"])),
     ]
     if "parameters" in meta:
-        items.append(("Parameters", _count(meta["parameters"])))
+        items.append(("Parameters", _counted(meta["parameters"], f"{r.src}/metadata/parameters")))
     sp = meta.get("speed")
     if sp is not None:
+        rate = _counted(sp["examples_per_second"], f"{r.src}/metadata/speed/examples_per_second")
         items.append(
             (
                 "Speed",
-                f"{_count(sp['examples_per_second'])} examples per second on {_e(sp['device'])}, "
-                f"measured by <code>{_e(sp['command'])}</code>",
+                f"{rate} examples per second on {_e(sp['device'])}, measured by <code>{_e(sp['command'])}</code>",
             )
         )
     for c in EXTRA_COLUMNS:
@@ -397,7 +405,7 @@ def _method_board(
     cmd = f"command-{r.board}"
     return f"""<section id="{r.board}">
 <h2>{_e(r.spec.key)} <small>({_e(r.spec.title)})</small></h2>
-<p class="meta">Position {r.data["position"]} of {len(board.rows)}, rank group
+<p class="meta">Position {_counted(r.data["position"], f"{r.src}/position")} of {len(board.rows)}, rank group
 <span data-json="{r.src}/group" data-decimals="0">{r.data["group"]}</span>
 (<a href="../index.html?board={r.board}">the board</a>). Data: {_e(r.spec.benchmark)}
 ({_e(board.data["data_version"])}).</p>
@@ -407,7 +415,8 @@ def _method_board(
 <h3>Data and predictions</h3>
 <p>Scored on the sets of content SHA-256:</p>
 <ul>{hashes}</ul>
-<p>Predictions: <a href="../{pred}" download>{_e(r.entry.predictions.name)}</a> ({r.data["predictions_rows"]:,} rows;
+<p>Predictions: <a href="../{pred}" download>{_e(r.entry.predictions.name)}</a>
+({_counted(r.data["predictions_rows"], f"{r.src}/predictions_rows")} rows;
 SHA-256 of the file <code class="hash">{hashlib.sha256(files[pred]).hexdigest()}</code>; of the CSV inside, as
 leaderboard.json records it, <code class="hash">{_e(r.data["predictions_csv_sha256"])}</code>).
 In the repository: <code>leaderboard/{_e(r.data["entry"])}/</code>.</p>
