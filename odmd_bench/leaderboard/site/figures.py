@@ -97,15 +97,19 @@ def pareto(points: Sequence[SpeedPoint]) -> list[SpeedPoint]:
 
 
 def speed_png(points: Sequence[SpeedPoint], boards: Sequence[str]) -> bytes:
-    """All against examples per second, one panel per board, the Pareto front marked."""
+    """All against examples per second, one panel per board, the Pareto front marked and named.
+
+    Only the front's points are named (by their name up to its first " ("), so that the
+    labels stay readable; every point is in the index's table.
+    """
     shown = [b for b in boards if any(p.board == b for p in points)]
-    fig = _figure(6.4, 3.6 * len(shown))
+    fig = _figure(6.4, 3.3 * len(shown))
     axes = fig.subplots(len(shown), 1, squeeze=False)[:, 0]
-    fig.subplots_adjust(left=0.1, right=0.97, bottom=0.4 / len(shown), top=1 - 0.25 / len(shown), hspace=0.45)
+    fig.subplots_adjust(left=0.1, right=0.97, bottom=0.4 / len(shown), top=1 - 0.25 / len(shown), hspace=0.5)
     for ax, board in zip(axes, shown, strict=True):
         mine = [p for p in points if p.board == board]
-        front = pareto(mine)
-        ax.scatter([p.examples_per_second for p in mine], [p.all for p in mine], color="#6b7b8c", s=18)
+        front = sorted(pareto(mine), key=lambda q: q.examples_per_second)
+        ax.scatter([p.examples_per_second for p in mine], [p.all for p in mine], color="#8795a3", s=16)
         ax.step(
             [p.examples_per_second for p in front],
             [p.all for p in front],
@@ -113,15 +117,24 @@ def speed_png(points: Sequence[SpeedPoint], boards: Sequence[str]) -> bytes:
             color="#c0392b",
             label="Pareto front",
         )
-        ax.scatter([p.examples_per_second for p in front], [p.all for p in front], color="#c0392b", s=30)
-        for p in mine:
+        ax.scatter(
+            [p.examples_per_second for p in front], [p.all for p in front], color="#c0392b", s=30, zorder=3
+        )
+        for i, p in enumerate(front):
+            last = i == len(front) - 1  # the fastest: named on its left, inside the panel
             ax.annotate(
-                p.name, (p.examples_per_second, p.all), fontsize=7, xytext=(3, 3), textcoords="offset points"
+                p.name.split(" (")[0],
+                (p.examples_per_second, p.all),
+                fontsize=8,
+                xytext=(-6 if last else 4, -10),
+                textcoords="offset points",
+                ha="right" if last else "left",
             )
         ax.set_xscale("log")
+        ax.margins(x=0.2, y=0.12)
         ax.set_xlabel("examples per second (log scale)")
-        ax.set_ylabel("All (mean percent error)")
-        ax.set_title(board, fontsize=10)
+        ax.set_ylabel("All (mean % error)")
+        ax.set_title(f"{board}: {len(mine)} entries", fontsize=10)
         ax.grid(alpha=0.3)
-        ax.legend(fontsize=8)
+        ax.legend(fontsize=8, loc="upper left")
     return _png(fig)
