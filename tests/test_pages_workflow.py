@@ -40,18 +40,22 @@ def _commands() -> list[list[str]]:
 def _missing(words: list[str]) -> list[str]:
     """What a command line (after ``odmd-bench``) calls that does not exist: its command or options."""
     command: click.Command = cli
-    ctx = click.Context(cli)
+    # each context made as the command line makes it: a parent's settings (-h) are inherited,
+    # and click caches a command's help option from the first context it is given
+    ctx = cli.make_context("odmd-bench", [], resilient_parsing=True)
     while isinstance(command, click.Group) and words and not words[0].startswith("-"):
         sub = command.get_command(ctx, words[0])
         if sub is None:
             return [f"command {words[0]!r}"]
         command, words = sub, words[1:]
+        if isinstance(command, click.Group):
+            ctx = command.make_context(command.name or "", [], parent=ctx, resilient_parsing=True)
     options = {o for p in command.params for o in (*p.opts, *p.secondary_opts)}
     missing = [
         f"option {w}" for w in (w.split("=")[0] for w in words if w.startswith("-")) if w not in options
     ]
     if not missing:
-        left = command.make_context(command.name or "", list(words), resilient_parsing=True).args
+        left = command.make_context(command.name or "", list(words), parent=ctx, resilient_parsing=True).args
         missing += [f"argument {a!r}" for a in left]
     return missing
 

@@ -421,6 +421,27 @@ def test_cli_site_writes_replaces_and_refuses_a_folder_of_other_files(
         write_site({}, other / "notes.txt")
 
 
+def test_an_extra_field_of_the_board_is_a_column_and_a_line_of_the_method_page(
+    small_board: Path, v1_data_dir: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """EXTRA_COLUMNS is where a new per-board field (an audit's result) is shown."""
+    from odmd_bench.leaderboard.site import ExtraColumn, load_site_data, pages, render_site
+
+    site = load_site_data(small_board, v1_data_dir, n_resamples=FAST)
+    plain = render_site(site, figures=False)
+    monkeypatch.setattr(
+        pages, "EXTRA_COLUMNS", (ExtraColumn("rows", "Rows scored", ("predictions_rows",), 0),)
+    )
+    files = render_site(site, figures=False)
+    index, page = files["index.html"].decode(), files["methods/box-ls.html"].decode()
+    assert (
+        '<th data-key="rows" data-type="num"' in index
+        and 'data-key="rows"' not in plain["index.html"].decode()
+    )
+    assert 'data-json="odmd-v1-test/box-ls/predictions_rows" data-decimals="0">12000<' in index
+    assert "<dt>Rows scored</dt>" in page and "Rows scored" not in plain["methods/box-ls.html"].decode()
+
+
 def test_facets() -> None:
     base = {"calibrated": False, "command": "odmd-bench baseline dbox", "description": "d"}
     assert facets({**base, "training_data": "none"})["training"] == "none"

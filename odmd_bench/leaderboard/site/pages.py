@@ -327,7 +327,7 @@ def _versus_row(r: SiteRow, v: Versus) -> str:
 
 def _versus_table(r: SiteRow, n_resamples: int) -> str:
     if not r.versus:
-        return "<p>This is the board's best method, and the board has no other to compare it with.</p>"
+        return "<p>Nothing to compare it with: it is the board's best method, and the reference (Box_LS) itself or not on this board.</p>"
     return (
         '<div class="scroll"><table class="versus">\n<thead><tr><th>Against</th>'
         '<th class="num">All: this minus it [95% interval]</th><th class="num">p</th><th>Verdict</th></tr>'
