@@ -170,3 +170,50 @@ def test_compare_results_refuses_different_splits(data: Path, tmp_path: Path) ->
     rb = evaluate(_preds(tmp_path, "b.csv", 0.1, 1, split="val"), benchmark="odmd-paper")
     with pytest.raises(UsageError, match="cannot be compared"):
         compare_results(ra, rb)
+
+
+def test_compare_pairs_gives_what_compare_errors_gives() -> None:
+    from odmd_bench.evaluation.compare import compare_pairs
+
+    a, b = errors(3, n=400, shift=0.4)
+    c, _ = errors(4, n=400)
+    methods = {"a": a, "b": b, "c": c, "a2": {s: v.copy() for s, v in a.items()}}
+    pairs = [("a", "b"), ("a", "c"), ("b", "c"), ("a", "a2"), ("c", "a")]
+    got = compare_pairs(methods, pairs, n_resamples=500, seed=3)
+    assert list(got) == pairs
+    verdicts = set()
+    for x, y in pairs:
+        want = compare_errors(methods[x], methods[y], n_resamples=500, seed=3)
+        for mine, theirs in [
+            (got[(x, y)].all, want.all),
+            *((got[(x, y)].sets[s], want.sets[s]) for s in SETS),
+        ]:
+            assert (mine.verdict, mine.p_value, mine.n, mine.mean_a, mine.mean_b) == (
+                theirs.verdict,
+                theirs.p_value,
+                theirs.n,
+                theirs.mean_a,
+                theirs.mean_b,
+            )
+            assert np.allclose(
+                [mine.difference, mine.ci_low, mine.ci_high],
+                [theirs.difference, theirs.ci_low, theirs.ci_high],
+                rtol=0,
+                atol=1e-12,
+            )
+        verdicts.add(want.all.verdict)
+    assert verdicts == {A_BETTER, B_BETTER, TIE}
+    assert got[("a", "a2")].all.difference == 0 and got[("a", "a2")].all.ci_low == 0
+
+
+def test_compare_pairs_checks_its_input() -> None:
+    from odmd_bench.evaluation.compare import compare_pairs
+
+    a, b = errors(1, n=50)
+    assert compare_pairs({"a": a}, []) == {}
+    with pytest.raises(UsageError, match="same non-empty 1-D errors"):
+        compare_pairs({"a": a, "b": {s: v[:-1] for s, v in b.items()}}, [("a", "b")])
+    with pytest.raises(UsageError, match="n_resamples must be between"):
+        compare_pairs({"a": a, "b": b}, [("a", "b")], n_resamples=0)
+    with pytest.raises(UsageError, match="must cover the sets"):
+        compare_pairs({"a": a, "b": {"normal": b["normal"]}}, [("a", "b")])

@@ -330,3 +330,61 @@ def test_json_metadata_gets_the_same_checks(tmp_path: Path) -> None:
     folder = _repo(tmp_path)
     (folder / "entry.json").write_text(json.dumps(_good_meta(code="../../../etc/passwd")))
     assert "is a path outside the repository" in _problems(folder)
+
+
+# ----------------------------------------------------------------------------- size and speed
+
+
+def test_parameters_and_speed_are_read_and_kept(tmp_path: Path) -> None:
+    speed = {"examples_per_second": 7228.5, "device": "Intel(R) Xeon(R) Processor", "command": "pytest b.py"}
+    meta = _good_meta(parameters=604929, speed=speed)
+    entry = lb.read_entry(_entry_folder(tmp_path, meta))
+    assert entry.meta.parameters == 604929 and entry.meta.speed == speed
+    assert entry.meta.to_dict() == meta
+    assert list(entry.meta.to_dict())[-2:] == ["parameters", "speed"]
+
+
+@pytest.mark.parametrize(
+    ("over", "words"),
+    [
+        ({"parameters": -1}, "parameters must be the number of trained parameters"),
+        ({"parameters": 1.5}, "parameters must be"),
+        ({"parameters": True}, "parameters must be"),
+        ({"parameters": "600k"}, "parameters must be"),
+        ({"speed": 7000}, "speed must be a mapping"),
+        ({"speed": {"examples_per_second": 1.0, "device": "x"}}, "speed: missing field 'command'"),
+        (
+            {"speed": {"examples_per_second": 1.0, "device": "x", "command": "c", "threads": 1}},
+            "speed: unknown field 'threads'",
+        ),
+        (
+            {"speed": {"examples_per_second": 0, "device": "x", "command": "c"}},
+            "examples_per_second must be a number > 0",
+        ),
+        (
+            {"speed": {"examples_per_second": "fast", "device": "x", "command": "c"}},
+            "examples_per_second must be",
+        ),
+        (
+            {"speed": {"examples_per_second": 1.0, "device": "a\nb", "command": "c"}},
+            "'device' must not hold line breaks",
+        ),
+        ({"speed": {"examples_per_second": 1.0, "device": "x", "command": "c" * 501}}, "at most 500"),
+        ({"speed": {"examples_per_second": 1.0, "device": ["x"], "command": "c"}}, "'device' must be text"),
+    ],
+)
+def test_parameters_and_speed_are_checked(tmp_path: Path, over: dict[str, object], words: str) -> None:
+    assert words in _problems(_entry_folder(tmp_path, _good_meta(**over)))
+
+
+def test_every_problem_of_speed_is_named_at_once(tmp_path: Path) -> None:
+    meta = _good_meta(parameters=-5, speed={"examples_per_second": -1, "device": "", "extra": 1})
+    text = _problems(_entry_folder(tmp_path, meta))
+    for words in (
+        "parameters must be",
+        "unknown field 'extra'",
+        "missing field 'command'",
+        "> 0",
+        "'device' must be text",
+    ):
+        assert words in text

@@ -1,4 +1,4 @@
-"""``leaderboard build``, ``leaderboard check`` and ``leaderboard add``."""
+"""``leaderboard build``, ``leaderboard check``, ``leaderboard add`` and ``leaderboard site``."""
 
 from __future__ import annotations
 
@@ -121,6 +121,51 @@ def add_command(predictions: Path, root: Path | None, command_: str, **fields: A
     # The other options are add_entry's keywords, under the same names.
     entry = add_entry(_root(root), predictions, command=command_, **fields)
     click.echo(f"added {entry.folder}; now run `odmd-bench leaderboard build` and commit the folder")
+
+
+@leaderboard.command("site")
+@click.option(
+    "-o",
+    "--output",
+    required=True,
+    type=click.Path(path_type=Path),
+    help="The folder to write the site to (new, empty, or a site written before, which is replaced).",
+)
+@click.option("--no-plot", is_flag=True, help="Draw no figures (they need the [plot] extra, matplotlib).")
+@click.option(
+    "--source-url",
+    default=None,
+    help="Where repository paths link to, e.g. https://github.com/OWNER/odmd-bench/blob/main "
+    "[default: shown as text].",
+)
+@_root_option
+@_data_option
+@_original_option
+def site_command(
+    output: Path,
+    no_plot: bool,
+    source_url: str | None,
+    root: Path | None,
+    data_dir: Path | None,
+    original: Path | None,
+) -> None:
+    """Write the leaderboard as a static web site: index, a page per method, downloads.
+
+    Built from the committed leaderboard.json, each entry re-scored beside it (a number
+    that differs stops it: run `leaderboard build` first). Serve the folder with any web
+    server, e.g. python -m http.server -d DIR.
+    """
+    from odmd_bench.leaderboard.site import build_site, write_site
+
+    folder = _root(root)
+    files, said = build_site(
+        folder, data_dir, original, figures=False if no_plot else None, source_url=source_url
+    )
+    write_site(files, output)
+    for line in said:
+        click.echo(line)
+    pages = sum(1 for name in files if name.endswith(".html"))
+    click.echo(f"wrote {output}: {len(files)} files, {pages} pages (open {output / 'index.html'})")
 
 
 COMMANDS: list[click.Command] = [leaderboard]

@@ -17,6 +17,7 @@ from odmd_bench.leaderboard.rules import (
     MAX_LENGTHS,
     OPTIONAL_FIELDS,
     REQUIRED_FIELDS,
+    SPEED_FIELDS,
     code_problems,
     content_problems,
     field_problems,
@@ -38,7 +39,7 @@ __all__ = [
 
 @dataclass(frozen=True)
 class EntryMeta:
-    """An entry's checked metadata (the fields of :data:`REQUIRED_FIELDS` and ``notes``).
+    """An entry's checked metadata (the fields of :data:`REQUIRED_FIELDS` and :data:`OPTIONAL_FIELDS`).
 
     ``date`` is ``YYYY-MM-DD``; ``sets_content_sha256`` keeps the order it was written in.
     """
@@ -57,6 +58,8 @@ class EntryMeta:
     calibrated: bool
     predictions: str
     notes: str | None = field(default=None)
+    parameters: int | None = field(default=None)
+    speed: Mapping[str, object] | None = field(default=None)
 
     def __post_init__(self) -> None:
         problems = content_problems(self.to_dict())
@@ -64,11 +67,15 @@ class EntryMeta:
             raise ValidationError(f"entry metadata of {show(self.method)} is incomplete or wrong", problems)
 
     def to_dict(self) -> dict[str, object]:
-        """The fields as a plain mapping, in the documented order (``notes`` only when set)."""
+        """The fields as a plain mapping, in the documented order (optional ones only when set)."""
         out: dict[str, object] = {k: getattr(self, k) for k in REQUIRED_FIELDS}
         out["sets_content_sha256"] = dict(self.sets_content_sha256)
         if self.notes is not None:
             out["notes"] = self.notes
+        if self.parameters is not None:
+            out["parameters"] = self.parameters
+        if self.speed is not None:
+            out["speed"] = {k: self.speed[k] for k in SPEED_FIELDS}
         return out
 
 
@@ -145,5 +152,7 @@ def validate_meta(
         calibrated=data["calibrated"] is True,
         predictions=text["predictions"],
         notes=text.get("notes"),
+        parameters=parameters if isinstance(parameters := data.get("parameters"), int) else None,
+        speed=dict(speed) if isinstance(speed := data.get("speed"), dict) else None,
     )
     return meta, []

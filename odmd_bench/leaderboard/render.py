@@ -157,9 +157,32 @@ def _cell(text: str) -> str:
     return text.replace("[", "\\[").replace("]", "\\]").replace("<", "&lt;").replace(">", "&gt;")
 
 
+def format_number(x: float, decimals: int = 2) -> str:
+    """``x`` as every table of the board prints it: ``decimals`` digits, never ``-0.00``.
+
+    Shared by ``LEADERBOARD.md``, the README block and the web site.
+
+    Examples:
+        >>> format_number(2.994531), format_number(-0.001), format_number(0.0141151, 4)
+        ('2.99', '0.00', '0.0141')
+    """
+    s = f"{x:.{decimals}f}"
+    return s[1:] if s.startswith("-") and not s.strip("-0.") else s
+
+
+def format_difference(difference: float, ci_low: float, ci_high: float) -> str:
+    """A comparison of a row B with a method A, ``A - B`` as the evaluator reports it, shown as ``B - A [low, high]``.
+
+    Examples:
+        >>> format_difference(-0.5, -0.75, -0.25)
+        '+0.50 [+0.25, +0.75]'
+    """
+    diff, lo, hi = (-v + 0.0 for v in (difference, ci_high, ci_low))  # + 0.0: no -0
+    return f"{diff:+.2f} [{lo:+.2f}, {hi:+.2f}]".replace("-0.00", "+0.00")
+
+
 def _fmt(x: float) -> str:
-    s = f"{x:.2f}"
-    return "0.00" if s == "-0.00" else s
+    return format_number(x)
 
 
 def _table_head(head: Sequence[str], numeric: range) -> list[str]:
@@ -180,8 +203,7 @@ def _vs_cell(row: Row) -> str:
     if vs is None:
         return "best" if row.group == 1 else "group best"
     # The evaluator reports leader - row; the table shows row - leader.
-    diff, lo, hi = (-v + 0.0 for v in (vs.difference, vs.ci_high, vs.ci_low))  # + 0.0: no -0
-    return f"{diff:+.2f} [{lo:+.2f}, {hi:+.2f}]".replace("-0.00", "+0.00")
+    return format_difference(vs.difference, vs.ci_low, vs.ci_high)
 
 
 def _board_markdown(bd: Board) -> list[str]:

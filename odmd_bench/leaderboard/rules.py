@@ -34,7 +34,23 @@ REQUIRED_FIELDS: dict[str, str] = {
     "predictions": "the predictions file in the entry folder (.csv or .csv.gz)",
 }
 #: Fields an entry may have.
-OPTIONAL_FIELDS: dict[str, str] = {"notes": "anything else a reader should know"}
+OPTIONAL_FIELDS: dict[str, str] = {
+    "notes": "anything else a reader should know",
+    "parameters": "the number of trained parameters (network weights) the command runs, a whole number; "
+    "0 for a method without trained weights",
+    "speed": "{examples_per_second: a number > 0, device: the CPU or GPU model, command: the command "
+    "that measured it}",
+}
+#: The fields of ``speed``: name -> what is expected.
+SPEED_FIELDS: dict[str, str] = {
+    "examples_per_second": "examples predicted per second, a number > 0",
+    "device": "the CPU or GPU model it ran on (one line, at most 200 characters)",
+    "command": "the command that measured it (one line, at most 500 characters)",
+}
+#: Longest text of each text field of ``speed``.
+SPEED_LENGTHS: dict[str, int] = {"device": 200, "command": 500}
+#: Largest ``parameters`` count accepted (far above any model of this task).
+MAX_PARAMETERS = 10**15
 #: Longest value of each text field, in characters.
 MAX_LENGTHS: dict[str, int] = {
     "method": 40,
@@ -239,4 +255,45 @@ def content_problems(data: Mapping[str, object]) -> list[str]:
         problems += _hash_problems(data["sets_content_sha256"], data.get("benchmark"))
     if "predictions" not in bad:
         problems += _predictions_problems(data["predictions"])
+    problems += parameters_problems(data.get("parameters"))
+    problems += speed_problems(data.get("speed"))
+    return problems
+
+
+def parameters_problems(value: object) -> list[str]:
+    """``parameters``: absent, or a whole number from 0 to :data:`MAX_PARAMETERS`."""
+    if value is None:
+        return []
+    if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value <= MAX_PARAMETERS:
+        return [f"parameters must be {OPTIONAL_FIELDS['parameters']}, got {show(value)}"]
+    return []
+
+
+def speed_problems(value: object) -> list[str]:
+    """``speed``: absent, or exactly the fields of :data:`SPEED_FIELDS`, each as described."""
+    if value is None:
+        return []
+    if not isinstance(value, dict):
+        return [f"speed must be a mapping {OPTIONAL_FIELDS['speed']}, got {show(value)}"]
+    problems = [
+        f"speed: unknown field {show(k)}; the fields are {', '.join(SPEED_FIELDS)}"
+        for k in value
+        if k not in SPEED_FIELDS
+    ]
+    problems += [f"speed: missing field {k!r}: {what}" for k, what in SPEED_FIELDS.items() if k not in value]
+    rate = value.get("examples_per_second")
+    if "examples_per_second" in value and (
+        isinstance(rate, bool) or not isinstance(rate, (int, float)) or not 0 < rate < float("inf")
+    ):
+        problems.append(f"speed: examples_per_second must be a number > 0, got {show(rate)}")
+    for k, limit in SPEED_LENGTHS.items():
+        v = value.get(k)
+        if k not in value:
+            continue
+        if not isinstance(v, str) or not v.strip():
+            problems.append(f"speed: field {k!r} must be text, got {show(v)}")
+        elif len(v) > limit:
+            problems.append(f"speed: field {k!r} is {len(v)} characters long; at most {limit} are allowed")
+        elif _CONTROL.search(v) or "\n" in v:
+            problems.append(f"speed: field {k!r} must not hold line breaks or control characters")
     return problems

@@ -1,0 +1,167 @@
+r"""Speed and size of every leaderboard entry of this repository's methods (the entries' ``speed`` and ``parameters``).
+
+Run (one core: one torch thread, OpenBLAS to one thread), with the boards' data in place
+(``odmd-bench leaderboard check`` builds it; the release checkpoint's entry needs the
+original release at ``../shared/odmd-original`` or ``ODMD_ORIGINAL``):
+
+    OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 .venv/bin/pytest benchmarks/bench_entries.py \
+        --benchmark-only -p no:randomly -s
+
+Each entry's own command (``odmd-bench baseline NAME --benchmark B --split test ...``) is
+read from its ``entry.yaml``, and the method's ``run`` is timed on every set of the board's
+test split with exactly those options, as ``baseline`` calls it (the sets loaded before,
+the CSV not written): examples per second = examples / best time of the rounds. The
+rounds are interleaved (each runs every entry once), so that a machine shared with other
+work slows every entry alike; ``extra_info`` holds each entry's ``examples_per_s``. ``parameters`` is the number of trained weights the
+command uses: a DBox network's parameters times the checkpoints it runs (four with
+per-set selection); 0 for the methods without trained weights. ``-s`` prints them.
+"""
+
+from __future__ import annotations
+
+import os
+import platform
+import shlex
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from odmd_bench import load_split, methods
+from odmd_bench.cli.options import given_options
+from odmd_bench.leaderboard import discover, read_entry
+
+REPO = Path(__file__).resolve().parents[1]
+ROUNDS = 5
+MIN_TIMED_S = 0.2
+RELEASE = Path(os.environ.get("ODMD_ORIGINAL") or REPO.parent / "shared" / "odmd-original")
+#: an entry's command names the user's copy of the original release so
+RELEASE_PLACEHOLDER = "ODMD/"
+OWN = [f for f in discover(REPO / "leaderboard") if read_entry(f).meta.code.startswith("baselines/")]
+
+
+def cpu_model() -> str:
+    """The CPU's model name (``/proc/cpuinfo``), else what :mod:`platform` says."""
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.partition(":")[2].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
+def options(command: str) -> tuple[str, dict[str, str]]:
+    """(method name, its options) of an entry's ``odmd-bench baseline`` command."""
+    words = shlex.split(command)
+    if any(w.startswith("(") for w in words):
+        words = words[: next(i for i, w in enumerate(words) if w.startswith("("))]
+    assert words[:2] == ["odmd-bench", "baseline"], command
+    given = {}
+    for flag, value in zip(words[3::2], words[4::2], strict=False):
+        if flag in ("--config", "--selection", "--mode", "--weights"):
+            given[flag[2:]] = (
+                str(RELEASE / value[len(RELEASE_PLACEHOLDER) :])
+                if value.startswith(RELEASE_PLACEHOLDER)
+                else value
+            )
+    return words[2], given
+
+
+def trained_parameters(name: str, given: dict[str, str], sets: dict[str, Any]) -> int:
+    """The trained weights the command runs: a DBox network's parameters per checkpoint used."""
+    if name != "dbox":
+        return 0
+    from odmd_bench_baselines import dbox
+    from odmd_bench_baselines.dbox.model import DBox
+
+    per_network = sum(p.numel() for p in DBox().parameters())
+    files = {
+        dbox.resolve_weights(
+            ex, given.get("config"), given.get("weights"), given.get("selection", "overall")
+        )[0]
+        for ex in sets.values()
+    }
+    return per_network * len(files)
+
+
+@dataclass
+class Run:
+    """One entry's command, ready to time: the method, its options, the board's sets."""
+
+    key: str
+    method: Any
+    kwargs: dict[str, Any]
+    sets: dict[str, Any]
+    parameters: int
+    best: float = float("inf")
+    repeats: int = 1
+
+    @property
+    def examples(self) -> int:
+        return sum(len(ex) for ex in self.sets.values())
+
+    def __call__(self) -> None:
+        for ex in self.sets.values():
+            self.method.run(ex, **self.kwargs)
+
+    def seconds(self) -> float:
+        """Seconds per run of the command, ``repeats`` runs timed together.
+
+        A fast method's one run takes milliseconds, too short to time alone on a busy machine.
+        """
+        start = time.perf_counter()
+        for _ in range(self.repeats):
+            self()
+        return (time.perf_counter() - start) / self.repeats
+
+
+def _prepare(folder: Path) -> Run | None:
+    entry = read_entry(folder)
+    name, given = options(entry.meta.command)
+    if "weights" in given and not Path(given["weights"]).is_file():
+        return None  # the original release's checkpoint is not here
+    method = methods.load(name)
+    kwargs = given_options(
+        method,
+        weights=Path(given["weights"]) if "weights" in given else None,
+        weights_sha256=None,
+        config=given.get("config"),
+        selection=given.get("selection"),
+        mode=given.get("mode"),
+    )
+    sets = load_split(entry.split, entry.benchmark)
+    return Run(entry.key, method, kwargs, sets, trained_parameters(name, given, sets))
+
+
+def test_entries_speed(benchmark: Any) -> None:
+    """Every entry once per round, the rounds interleaved, so that a busy machine slows all alike."""
+    import torch
+
+    torch.set_num_threads(1)
+    runs = [r for r in map(_prepare, OWN) if r is not None]
+    skipped = len(OWN) - len(runs)
+
+    for run in runs:  # warm up, and repeat a fast command until a timing takes about 0.2 s
+        run.repeats = max(1, min(1000, round(MIN_TIMED_S / max(run.seconds(), 1e-6))))
+
+    def one_round() -> None:
+        for run in runs:
+            run.best = min(run.best, run.seconds())
+
+    benchmark.pedantic(one_round, rounds=ROUNDS, iterations=1, warmup_rounds=1)
+    cpu = cpu_model()
+    benchmark.extra_info.update({"cpu": cpu, "threads": 1, "rounds": ROUNDS, "skipped": skipped})
+    for run in runs:
+        rate = run.examples / run.best
+        benchmark.extra_info[run.key] = {
+            "examples": run.examples,
+            "best_s": run.best,
+            "repeats": run.repeats,
+            "examples_per_s": rate,
+            "parameters": run.parameters,
+        }
+        print(
+            f"{run.key}: parameters {run.parameters}, {rate:.4g} examples/s ({run.examples} in {run.best:.4f} s)"
+        )
+    print(f"on {cpu}, one thread, best of {ROUNDS} interleaved rounds; {skipped} entries skipped")

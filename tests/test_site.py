@@ -1,0 +1,600 @@
+"""The leaderboard's web site, parsed and in a real browser.
+
+Parsed: its numbers are leaderboard.json's, its links resolve, nothing is loaded from
+elsewhere, two builds are identical. In a real browser (Debian's chromium driven by
+playwright): a view given by the URL shows the right rows in the right order.
+
+The committed board's site is built once per module without figures and with fewer
+resamples for the paired comparisons (the figures and the determinism are checked on a
+small board). The browser tests skip outside CI when chromium or playwright is missing
+(saying how to install them) and fail in CI.
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import http.server
+import json
+import os
+import re
+import shutil
+import threading
+from collections.abc import Iterator
+from html.parser import HTMLParser
+from pathlib import Path
+from typing import Any
+from urllib.parse import parse_qs, urlsplit
+
+import pytest
+from click.testing import CliRunner
+
+from odmd_bench import leaderboard as lb
+from odmd_bench.cli.main import cli
+from odmd_bench.errors import UsageError, ValidationError
+from odmd_bench.leaderboard.site import build_site, facets, write_site
+from odmd_bench.leaderboard.site.figures import SpeedPoint, pareto
+
+REPO = Path(__file__).resolve().parents[1]
+FAST = 200
+CHROMIUM = Path("/usr/bin/chromium")
+INSTALL = "apt-get install -y chromium (Debian's), and playwright's Python package (pip install -e '.[dev]')"
+
+
+# ----------------------------------------------------------------------------- parsing
+
+
+class Page(HTMLParser):
+    """Links, sources, ids, numbers with data-json, tables and rows of one page."""
+
+    def __init__(self) -> None:
+        super().__init__(convert_charrefs=True)
+        self.links: list[tuple[str, str, str]] = []  # (tag, attribute, value)
+        self.ids: set[str] = set()
+        self.numbers: list[tuple[str, str, str | None, str]] = []  # (json path, decimals, text?, text)
+        self.tables: dict[str, list[str]] = {}
+        self._open: list[dict[str, Any]] = []
+        self._table: str | None = None
+
+    def handle_starttag(self, tag: str, attrs: list[tuple[str, str | None]]) -> None:
+        a = {k: v or "" for k, v in attrs}
+        for attr in ("href", "src"):
+            if attr in a:
+                self.links.append((tag, attr, a[attr]))
+        if "id" in a:
+            self.ids.add(a["id"])
+        if tag == "table" and "data-board" in a:
+            self._table = a["data-board"]
+            self.tables[self._table] = []
+        if tag == "tr" and self._table is not None and "data-method" in a:
+            self.tables[self._table].append(a["data-method"])
+        if "data-json" in a:
+            self._open.append({"tag": tag, "a": a, "text": ""})
+        elif self._open and tag not in ("br",):
+            self._open[-1].setdefault("depth", 0)
+            self._open[-1]["depth"] = self._open[-1]["depth"] + 1
+
+    def handle_endtag(self, tag: str) -> None:
+        if tag == "table":
+            self._table = None
+        if not self._open:
+            return
+        top = self._open[-1]
+        if top.get("depth"):
+            top["depth"] -= 1
+            return
+        if tag == top["tag"]:
+            self._open.pop()
+            a = top["a"]
+            self.numbers.append((a["data-json"], a.get("data-decimals", ""), a.get("data-text"), top["text"]))
+
+    def handle_data(self, data: str) -> None:
+        if self._open:
+            self._open[-1]["text"] += data
+
+
+def parse(path: Path) -> Page:
+    page = Page()
+    page.feed(path.read_text(encoding="utf-8"))
+    return page
+
+
+def _row(data: dict[str, Any], board_id: str, method: str) -> dict[str, Any]:
+    board = next(b for b in data["boards"] if f"{b['benchmark']}-{b['split']}" == board_id)
+    return next(r for r in board["rows"] if r["method"] == method)
+
+
+def _resolve(data: dict[str, Any], path: str) -> Any:
+    """A value of leaderboard.json by a site's data-json path."""
+    parts = path.split("/")
+    node: Any = data["reported"][int(parts[1])] if parts[0] == "reported" else _row(data, parts[0], parts[1])
+    for k in parts[2:]:
+        node = node[k]
+    return node
+
+
+def _views(data: dict[str, Any]) -> dict[str, list[str]]:
+    """Each board's method order in leaderboard.json."""
+    return {
+        f"{b['benchmark']}-{b['split']}": [r["method"] for r in b["rows"]]
+        for b in data["boards"]
+        if b["rows"]
+    }
+
+
+def _sorted(data: dict[str, Any], board: str, key: str, order: str) -> list[str]:
+    """The order a view sorted by ``key`` must show: by the JSON's means, ties in board order."""
+    rows = next(b["rows"] for b in data["boards"] if f"{b['benchmark']}-{b['split']}" == board)
+    value = (lambda r: r["all"]) if key == "all" else (lambda r: r["sets"][key]["percent_error"]["mean"])
+    sign = -1 if order == "desc" else 1
+    return [r["method"] for r in sorted(rows, key=lambda r: (sign * value(r), r["position"]))]
+
+
+# ----------------------------------------------------------------------------- the committed board
+
+
+@pytest.fixture(scope="module")
+def committed_data_dir(
+    paper_data_dir: Path, v1_data_dir: Path, tmp_path_factory: pytest.TempPathFactory
+) -> Path:
+    data = tmp_path_factory.mktemp("site-data")
+    for bench, source in (
+        ("odmd-paper", paper_data_dir),
+        ("odms-detection", paper_data_dir),
+        ("odmd-v1", v1_data_dir),
+    ):
+        (data / bench).symlink_to(source / bench)
+    return data
+
+
+@pytest.fixture(scope="module")
+def site(committed_data_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The committed board's site (no figures: they are checked on the small board)."""
+    files, _ = build_site(REPO / "leaderboard", committed_data_dir, figures=False, n_resamples=FAST)
+    out = tmp_path_factory.mktemp("site") / "site"
+    write_site(files, out)
+    return out
+
+
+@pytest.fixture(scope="module")
+def board_json() -> dict[str, Any]:
+    return json.loads((REPO / "leaderboard" / lb.JSON_FILE).read_text(encoding="utf-8"))
+
+
+def _pages(site: Path) -> list[Path]:
+    return sorted(site.rglob("*.html"))
+
+
+def test_every_number_on_every_page_is_leaderboard_json_to_its_printed_digits(
+    site: Path, board_json: dict[str, Any]
+) -> None:
+    counted = 0
+    for path in _pages(site):
+        for src, decimals, as_text, text in parse(path).numbers:
+            value = _resolve(board_json, src)
+            if as_text:
+                assert text == str(value), (path.name, src)
+            elif isinstance(value, dict):  # a comparison the JSON holds: its difference, as the row minus A
+                assert f"{-value['difference_a_minus_b']:+.2f}" in text.replace("-0.00", "+0.00"), (
+                    path.name,
+                    src,
+                )
+            else:
+                shown = float(text.replace(",", ""))
+                assert shown == round(float(value), int(decimals)), (path.name, src, text, value)
+                assert len(text.partition(".")[2]) == int(decimals), (path.name, src, text)
+            counted += 1
+    # Not vacuous: the index alone prints group, every set and All of every row.
+    rows = sum(len(b["rows"]) for b in board_json["boards"])
+    expected = {
+        f"{b['benchmark']}-{b['split']}/{r['method']}/{path}"
+        for b in board_json["boards"]
+        for r in b["rows"]
+        for path in ("group", "all", *(f"sets/{s}/percent_error/mean" for s in b["sets"]))
+    }
+    assert expected <= {n[0] for n in parse(site / "index.html").numbers} and rows > 20
+    assert counted > 10 * rows
+
+
+def test_the_index_holds_each_board_in_board_order_and_links_every_entry(
+    site: Path, board_json: dict[str, Any]
+) -> None:
+    page = parse(site / "index.html")
+    assert page.tables == _views(board_json)
+    assert set(page.tables) == {"odmd-paper-test", "odmd-v1-test", "odms-detection-test"}
+    links = {v for tag, attr, v in page.links if tag == "a"}
+    for board, methods in page.tables.items():
+        for m in methods:
+            assert f"methods/{m}.html#{board}" in links
+            assert board in parse(site / "methods" / f"{m}.html").ids
+    assert {"downloads/leaderboard.json", *(f"downloads/{b}.csv" for b in page.tables)} <= links
+    assert "reported.html" in links
+
+
+def test_every_link_resolves_to_a_file_of_the_site_and_nothing_is_loaded_from_elsewhere(site: Path) -> None:
+    checked = 0
+    for path in _pages(site):
+        for tag, attr, value in parse(path).links:
+            parts = urlsplit(value)
+            if value.startswith("data:"):
+                assert tag == "link" and value == "data:,"  # the empty icon: no favicon request
+                continue
+            if parts.scheme or value.startswith("//"):
+                assert tag == "a" and attr == "href", f"{path.name} loads {value} from elsewhere"
+                assert parts.scheme in ("http", "https")
+                continue
+            target = (path.parent / parts.path).resolve() if parts.path else path
+            assert target.is_file() and target.is_relative_to(site.resolve()), f"{path.name}: {value}"
+            if parts.fragment and target.suffix == ".html":
+                assert parts.fragment in parse(target).ids, f"{path.name}: {value}"
+            checked += 1
+    assert checked > 200
+    css = (site / "assets" / "site.css").read_text()
+    js = (site / "assets" / "site.js").read_text()
+    assert "url(" not in css and "@import" not in css
+    assert not re.search(r"fetch\(|XMLHttpRequest|https?://|import\(", js)
+
+
+def test_the_downloads_are_the_board(site: Path, board_json: dict[str, Any]) -> None:
+    assert (site / "downloads" / "leaderboard.json").read_bytes() == (
+        REPO / "leaderboard" / lb.JSON_FILE
+    ).read_bytes()
+    import csv
+
+    for board in board_json["boards"]:
+        bid = f"{board['benchmark']}-{board['split']}"
+        with open(site / "downloads" / f"{bid}.csv", newline="") as fh:
+            rows = list(csv.DictReader(fh))
+        assert [r["method"] for r in rows] == [r["method"] for r in board["rows"]]
+        for line, row in zip(rows, board["rows"], strict=True):
+            assert float(line["all"]) == row["all"] and int(line["group"]) == row["group"]
+            for s in board["sets"]:
+                assert float(line[s]) == row["sets"][s]["percent_error"]["mean"]
+
+
+def test_each_method_page_offers_its_predictions_with_their_sha256_and_its_command(
+    site: Path, board_json: dict[str, Any]
+) -> None:
+    for board in board_json["boards"]:
+        bid = f"{board['benchmark']}-{board['split']}"
+        for row in board["rows"]:
+            page = site / "methods" / f"{row['method']}.html"
+            text = page.read_text()
+            pred = site / "predictions" / row["method"] / bid / row["predictions_file"]
+            assert (
+                pred.read_bytes()
+                == (REPO / "leaderboard" / row["entry"] / row["predictions_file"]).read_bytes()
+            )
+            assert hashlib.sha256(pred.read_bytes()).hexdigest() in text
+            assert row["predictions_csv_sha256"] in text
+            assert all(h in text for h in row["metadata"]["sets_content_sha256"].values())
+            import html
+
+            assert html.escape(row["metadata"]["command"], quote=True) in text
+            assert "Box_LS" in text or row["method"] == "box-ls"
+            assert "No figure: this site was built without the [plot] extra" in text
+
+
+def test_the_reported_page_is_labelled_and_holds_every_result(site: Path, board_json: dict[str, Any]) -> None:
+    text = (site / "reported.html").read_text()
+    assert "These numbers are copied from publications, not computed here" in text
+    sources = parse(site / "reported.html").numbers
+    assert len([s for s in sources if s[0].startswith("reported/")]) == sum(
+        len(r["sets"]) + 1 for r in board_json["reported"]
+    )
+
+
+def test_the_index_is_small(site: Path) -> None:
+    assert (site / "index.html").stat().st_size <= 300_000
+
+
+# ----------------------------------------------------------------------------- a small board
+
+
+@pytest.fixture(scope="module")
+def small_board(v1_data_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A built board of two odmd-v1 entries, one with a speed (so that the speed figure is drawn)."""
+    import yaml
+    from odmd_bench_baselines import box_ls, expansion
+
+    from odmd_bench import load_split
+    from odmd_bench.evaluation.predictions import write_predictions
+
+    tmp = tmp_path_factory.mktemp("small")
+    root = tmp / "leaderboard"
+    (root / lb.ENTRIES).mkdir(parents=True)
+    sets = load_split("test", "odmd-v1", v1_data_dir)
+    for method, module in (("box-ls", box_ls), ("expansion", expansion)):
+        preds = tmp / f"{method}.csv"
+        write_predictions(
+            preds, "test", {s: module.predict(ex) for s, ex in sets.items()}, benchmark="odmd-v1"
+        )
+        lb.add_entry(
+            root,
+            preds,
+            method=method,
+            name=method.upper(),
+            description="a test entry",
+            paper="none",
+            code="https://example.org/code",
+            training_data="none",
+            command=f"odmd-bench baseline {method}",
+            benchmark="odmd-v1",
+            split="test",
+            calibrated=False,
+            date="2026-01-02",
+            data_dir=v1_data_dir,
+        )
+    entry = root / lb.ENTRIES / "box-ls" / "odmd-v1-test" / "entry.yaml"
+    meta = yaml.safe_load(entry.read_text())
+    meta["parameters"] = 0
+    meta["speed"] = {
+        "examples_per_second": 1.5e6,
+        "device": "a test CPU",
+        "command": "pytest benchmarks/x.py",
+    }
+    entry.write_text(yaml.safe_dump(meta, sort_keys=False))
+    lb.write(root, lb.build(root, v1_data_dir, n_resamples=FAST), plot=False)
+    return root
+
+
+def test_two_builds_with_figures_are_identical(small_board: Path, v1_data_dir: Path) -> None:
+    pytest.importorskip("matplotlib")
+    first, said = build_site(small_board, v1_data_dir, n_resamples=FAST)
+    second, _ = build_site(small_board, v1_data_dir, n_resamples=FAST)
+    assert said == [] and first == second
+    figures = sorted(k for k in first if k.startswith("figures/"))
+    assert figures == [
+        "figures/box-ls--odmd-v1-test.png",
+        "figures/expansion--odmd-v1-test.png",
+        "figures/speed.png",
+    ]
+    assert all(first[f].startswith(b"\x89PNG") for f in figures)
+    page = first["methods/expansion.html"].decode()
+    assert 'src="../figures/expansion--odmd-v1-test.png"' in page and "No figure" not in page
+    assert "1 entries record their speed; 1 do not" in first["index.html"].decode()
+
+
+def test_the_comparisons_are_compares(small_board: Path, v1_data_dir: Path) -> None:
+    """Expansion against Box_LS (the best and the reference): the verdict and interval of compare_errors."""
+    from odmd_bench.evaluation.compare import compare_errors
+    from odmd_bench.leaderboard.render import format_difference
+    from odmd_bench.leaderboard.site import load_site_data
+
+    site = load_site_data(small_board, v1_data_dir, n_resamples=FAST)
+    (board,) = [b for b in site.boards if b.rows]
+    best, other = board.rows
+    (vs,) = other.versus
+    c = compare_errors(best.result.percent_errors(), other.result.percent_errors(), n_resamples=FAST).all
+    assert (vs.method, vs.verdict) == (best.method, c.verdict)
+    assert format_difference(vs.difference, vs.ci_low, vs.ci_high) == format_difference(
+        c.difference, c.ci_low, c.ci_high
+    )
+    assert best.versus == []
+
+
+def test_a_board_that_differs_from_its_entries_builds_no_site(
+    small_board: Path, v1_data_dir: Path, tmp_path: Path
+) -> None:
+    root = tmp_path / "leaderboard"
+    shutil.copytree(small_board, root)
+    path = root / lb.JSON_FILE
+    data = json.loads(path.read_text())
+    data["boards"][1]["rows"][0]["sets"]["camera"]["percent_error"]["mean"] += 0.01
+    path.write_text(json.dumps(data, indent=2) + "\n")
+    with pytest.raises(ValidationError) as e:
+        build_site(root, v1_data_dir, figures=False, n_resamples=FAST)
+    assert "differs from leaderboard.json in sets.camera.percent_error.mean" in "\n".join(e.value.problems)
+
+
+def test_cli_site_writes_replaces_and_refuses_a_folder_of_other_files(
+    small_board: Path, v1_data_dir: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from odmd_bench.leaderboard import ranking
+
+    monkeypatch.setattr(ranking, "RANK_RESAMPLES", FAST)
+    out = tmp_path / "site"
+    args = [
+        "leaderboard",
+        "site",
+        "-o",
+        str(out),
+        "--root",
+        str(small_board),
+        "--data-dir",
+        str(v1_data_dir),
+        "--no-plot",
+    ]
+    first = CliRunner().invoke(cli, args)
+    assert first.exit_code == 0, first.output
+    assert f"wrote {out}:" in first.output and (out / "methods" / "expansion.html").is_file()
+    (out / "stale.html").write_text("left from before")
+    again = CliRunner().invoke(cli, args)
+    assert again.exit_code == 0 and not (out / "stale.html").exists()
+    other = tmp_path / "other"
+    other.mkdir()
+    (other / "notes.txt").write_text("mine")
+    refused = CliRunner().invoke(cli, [*args[:3], str(other), *args[4:]])
+    assert refused.exit_code == 2 and "holds no site written by odmd-bench" in refused.output
+    assert (other / "notes.txt").read_text() == "mine"
+    with pytest.raises(UsageError, match="is a file"):
+        write_site({}, other / "notes.txt")
+
+
+def test_an_extra_field_of_the_board_is_a_column_and_a_line_of_the_method_page(
+    small_board: Path, v1_data_dir: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """EXTRA_COLUMNS is where a new per-board field (an audit's result) is shown."""
+    from odmd_bench.leaderboard.site import ExtraColumn, load_site_data, pages, render_site
+
+    site = load_site_data(small_board, v1_data_dir, n_resamples=FAST)
+    plain = render_site(site, figures=False)
+    monkeypatch.setattr(
+        pages, "EXTRA_COLUMNS", (ExtraColumn("rows", "Rows scored", ("predictions_rows",), 0),)
+    )
+    files = render_site(site, figures=False)
+    index, page = files["index.html"].decode(), files["methods/box-ls.html"].decode()
+    assert (
+        '<th data-key="rows" data-type="num"' in index
+        and 'data-key="rows"' not in plain["index.html"].decode()
+    )
+    assert 'data-json="odmd-v1-test/box-ls/predictions_rows" data-decimals="0">12000<' in index
+    assert "<dt>Rows scored</dt>" in page and "Rows scored" not in plain["methods/box-ls.html"].decode()
+
+
+def test_facets() -> None:
+    base = {"calibrated": False, "command": "odmd-bench baseline dbox", "description": "d"}
+    assert facets({**base, "training_data": "none"})["training"] == "none"
+    assert facets({**base, "training_data": "ODMD generator v1, 100K steps"})["training"] == "generator"
+    assert facets({**base, "training_data": "KITTI"})["training"] == "other"
+    per_set = {**base, "training_data": "x", "command": "odmd-bench baseline dbox --selection per-set"}
+    assert facets(per_set)["selection"] == "per-set"
+    assert facets({**base, "training_data": "x"})["selection"] == "overall"
+
+
+def test_pareto_front() -> None:
+    pts = [
+        SpeedPoint("b", n, v, a)
+        for n, v, a in [("slow-good", 10, 3), ("fast-bad", 1000, 20), ("dominated", 5, 9), ("mid", 100, 10)]
+    ]
+    assert [p.name for p in pareto(pts)] == ["fast-bad", "mid", "slow-good"]
+
+
+# ----------------------------------------------------------------------------- in a real browser
+
+
+@pytest.fixture(scope="module")
+def browser(site: Path, tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Any, str]]:
+    """(a page of headless chromium, the site's address on 127.0.0.1), one browser per module."""
+    problems = []
+    if not CHROMIUM.is_file():
+        problems.append(f"{CHROMIUM} is missing")
+    try:
+        from playwright.sync_api import sync_playwright
+    except ImportError:
+        problems.append("playwright is not installed")
+    if problems:
+        message = f"the browser tests need chromium and playwright ({'; '.join(problems)}): {INSTALL}"
+        if os.environ.get("CI"):
+            pytest.fail(message + "; CI must have them", pytrace=False)
+        pytest.skip(message)
+
+    class Quiet(http.server.SimpleHTTPRequestHandler):
+        def log_message(self, format: str, *args: Any) -> None:  # noqa: A002
+            pass
+
+    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), functools.partial(Quiet, directory=str(site)))
+    thread = threading.Thread(target=server.serve_forever, daemon=True)
+    thread.start()
+    base = f"http://127.0.0.1:{server.server_address[1]}/"
+    profile = tmp_path_factory.mktemp("chromium-profile")
+    with sync_playwright() as p:
+        context = p.chromium.launch_persistent_context(
+            str(profile),
+            executable_path=str(CHROMIUM),
+            headless=True,
+            args=["--no-sandbox", "--disable-gpu", "--disable-background-networking"],
+            viewport={"width": 1280, "height": 900},
+        )
+        page = context.new_page()
+        outside: list[str] = []
+        page.on("request", lambda r: None if r.url.startswith((base, "data:")) else outside.append(r.url))
+        page.on("pageerror", lambda e: outside.append(f"script error: {e}"))
+        try:
+            yield page, base
+        finally:
+            context.close()
+            server.shutdown()
+            server.server_close()
+    assert outside == []
+
+
+def _shown(page: Any, board: str) -> list[str]:
+    return list(
+        page.eval_on_selector_all(
+            f'table[data-board="{board}"] tbody tr',
+            "rows => rows.filter(r => !r.hidden).map(r => r.dataset.method)",
+        )
+    )
+
+
+def test_browser_a_view_given_by_the_url_shows_its_rows_in_order(
+    browser: tuple[Any, str], board_json: dict[str, Any]
+) -> None:
+    page, base = browser
+    for board in board_json["boards"]:
+        bid = f"{board['benchmark']}-{board['split']}"
+        for key in (*board["sets"], "all"):
+            for order in ("asc", "desc") if key == "all" else ("asc",):
+                # the script runs at the end of the body: the view is applied by DOMContentLoaded
+                page.goto(
+                    f"{base}index.html?board={bid}&sort={key}&order={order}", wait_until="domcontentloaded"
+                )
+                assert _shown(page, bid) == _sorted(board_json, bid, key, order), (bid, key, order)
+                hidden = page.eval_on_selector_all(
+                    "section[data-board-section]", "s => s.filter(x => x.hidden).map(x => x.id)"
+                )
+                assert sorted(hidden) == sorted(b for b in _views(board_json) if b != bid)
+
+
+def test_browser_a_filtered_view_shows_only_its_rows(
+    browser: tuple[Any, str], board_json: dict[str, Any]
+) -> None:
+    page, base = browser
+    page.goto(f"{base}index.html?training=generator&selection=overall&sort=method&order=asc")
+    for board in board_json["boards"]:
+        bid = f"{board['benchmark']}-{board['split']}"
+        keep = [
+            r
+            for r in board["rows"]
+            if facets(r["metadata"]) | {}
+            and facets(r["metadata"])["training"] == "generator"
+            and facets(r["metadata"])["selection"] == "overall"
+        ]
+        expected = [r["method"] for r in sorted(keep, key=lambda r: (r["name"].lower(), r["position"]))]
+        assert _shown(page, bid) == expected and expected
+    shown = page.text_content("#shown")
+    total = sum(len(b["rows"]) for b in board_json["boards"])
+    assert shown is not None and shown.endswith(f"of {total} rows shown")
+
+
+def test_browser_clicking_a_header_sorts_and_updates_the_url(
+    browser: tuple[Any, str], board_json: dict[str, Any]
+) -> None:
+    page, base = browser
+    page.goto(f"{base}index.html?board=odmd-v1-test&calibrated=no")
+    button = 'table[data-board="odmd-v1-test"] th[data-key="camera"] button'
+    page.click(button)
+    assert parse_qs(urlsplit(page.url).query) == {
+        "board": ["odmd-v1-test"],
+        "sort": ["camera"],
+        "order": ["asc"],
+        "calibrated": ["no"],
+    }
+    no = [
+        m
+        for m in _sorted(board_json, "odmd-v1-test", "camera", "asc")
+        if not _row(board_json, "odmd-v1-test", m)["metadata"]["calibrated"]
+    ]
+    assert _shown(page, "odmd-v1-test") == no
+    page.click(button)
+    assert "order=desc" in page.url
+    assert _shown(page, "odmd-v1-test") == [
+        m for m in _sorted(board_json, "odmd-v1-test", "camera", "desc") if m in no
+    ]
+    # The view survives a reload: it lives in the URL.
+    page.reload()
+    assert _shown(page, "odmd-v1-test") == [
+        m for m in _sorted(board_json, "odmd-v1-test", "camera", "desc") if m in no
+    ]
+
+
+def test_browser_writes_a_screenshot_of_the_index(
+    browser: tuple[Any, str], tmp_path_factory: pytest.TempPathFactory
+) -> None:
+    """The README's view, for review: ODMD_SITE_SCREENSHOT=docs/leaderboard-site.png keeps it there."""
+    page, base = browser
+    page.goto(f"{base}index.html?board=odmd-paper-test&sort=robot&order=asc")
+    shot = Path(os.environ.get("ODMD_SITE_SCREENSHOT") or tmp_path_factory.mktemp("screenshot") / "index.png")
+    page.screenshot(path=str(shot))
+    assert shot.read_bytes().startswith(b"\x89PNG") and 10_000 < shot.stat().st_size < 300_000
