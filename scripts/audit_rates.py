@@ -1,0 +1,124 @@
+"""The fresh-seed audit's false-alarm rate and power, measured on the committed board.
+
+For each seed of ``--seeds``, the whole ``odmd-v1`` test board is audited as
+``odmd-bench leaderboard audit --seed SEED`` does (every entry honest: none was tuned on
+the test sets): a flagged entry is a false alarm. On the first ``--power-seeds`` seeds
+the same re-runs are tested again with an advantage planted in every entry's committed
+errors: on a random fraction ``q`` of the examples of each committed set the error is
+set to 0 (the method answers the truth there, as a partial memoriser would), so the
+committed mean drops by about ``q`` times itself; a flagged entry is then a detection.
+
+Writes ``--out`` (JSON: per seed, the flagged entries and raw p-values; the summary) and
+prints the summary. Slow (every DBox configuration re-run per seed: about a minute per
+seed on 2 cores); run it with ``nice`` (output: docs/audit_rates.json)::
+
+    nice -n 19 python scripts/audit_rates.py --seeds 1-50 --power-seeds 20 --original ../shared/odmd-original
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from odmd_bench.leaderboard.audit import Collected, assess, collect_errors, flagged
+
+ROOT = Path(__file__).resolve().parents[1] / "leaderboard"
+#: Fractions of committed examples whose error is set to 0.
+FRACTIONS = (0.01, 0.02, 0.05, 0.1)
+
+
+def _seeds(text: str) -> list[int]:
+    first, _, last = text.partition("-")
+    return list(range(int(first), int(last or first) + 1))
+
+
+def planted(found: Collected, q: float, seed: int) -> Collected:
+    """``found`` with the error of a random fraction ``q`` of each committed set's examples set to 0."""
+    rng = np.random.default_rng([seed, int(q * 10_000)])
+    committed = {}
+    for s, c in found.committed.items():
+        c = c.copy()
+        for k in range(c.shape[1]):
+            chosen = rng.choice(len(c), size=round(q * len(c)), replace=False)
+            c[chosen, k] = 0.0
+        committed[s] = c
+    return Collected(found.header, found.rows, found.audited, committed, found.fresh)
+
+
+def _summary(result: dict[str, Any]) -> dict[str, Any]:
+    ps = [t["p"] for e in result["entries"] if e["runnable"] for t in [*e["sets"].values(), e["all"]]]
+    return {
+        "flagged": flagged(result),
+        "tests": len(ps),
+        "raw_p_at_most_0.05": sum(p <= 0.05 for p in ps),
+        "raw_p_at_most_0.01": sum(p <= 0.01 for p in ps),
+        "p": {
+            e["method"]: {**{s: t["p"] for s, t in e["sets"].items()}, "all": e["all"]["p"]}
+            for e in result["entries"]
+            if e["runnable"]
+        },
+        "committed_all": {e["method"]: e["all"]["committed"] for e in result["entries"] if e["runnable"]},
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seeds", default="1-50", help="audit seeds, FIRST-LAST (default 1-50)")
+    parser.add_argument("--power-seeds", type=int, default=20, help="how many of them also measure power")
+    parser.add_argument("--original", default=None, help="the original release (for dbox-release's weights)")
+    parser.add_argument("--data-dir", default=None)
+    parser.add_argument("--out", type=Path, default=Path("docs/audit_rates.json"))
+    args = parser.parse_args()
+    seeds = _seeds(args.seeds)
+    runs: list[dict[str, Any]] = []
+    for i, seed in enumerate(seeds):
+        start = time.perf_counter()
+        found = collect_errors(ROOT, seed, data_dir=args.data_dir, original=args.original)
+        run: dict[str, Any] = {"seed": seed, "honest": _summary(assess(found))}
+        if i < args.power_seeds:
+            run["planted"] = {str(q): _summary(assess(planted(found, q, seed))) for q in FRACTIONS}
+        run["seconds"] = round(time.perf_counter() - start, 1)
+        runs.append(run)
+        print(f"seed {seed}: flagged {run['honest']['flagged'] or 'none'} ({run['seconds']} s)", flush=True)
+        _write(args.out, runs, args)
+
+
+def _write(out: Path, runs: list[dict[str, Any]], args: argparse.Namespace) -> None:
+    n = len(runs)
+    entries = sorted(runs[0]["honest"]["committed_all"])
+    tests = sum(r["honest"]["tests"] for r in runs)
+    power = {}
+    with_power = [r for r in runs if "planted" in r]
+    for q in FRACTIONS:
+        if with_power:
+            power[str(q)] = {
+                m: sum(m in r["planted"][str(q)]["flagged"] for r in with_power) / len(with_power)
+                for m in entries
+            }
+    summary = {
+        "command": f"nice -n 19 python scripts/audit_rates.py --seeds {args.seeds} --power-seeds {args.power_seeds}"
+        + (" --original ORIGINAL" if args.original else ""),
+        "seeds": n,
+        "audits_with_a_false_alarm": sum(bool(r["honest"]["flagged"]) for r in runs),
+        "false_alarms_by_entry": {m: sum(m in r["honest"]["flagged"] for r in runs) for m in entries},
+        "raw_tests": tests,
+        "raw_p_at_most_0.05": sum(r["honest"]["raw_p_at_most_0.05"] for r in runs),
+        "raw_p_at_most_0.01": sum(r["honest"]["raw_p_at_most_0.01"] for r in runs),
+        "power_seeds": len(with_power),
+        "power_planted_fraction_to_detection_rate": power,
+        "committed_all_of_the_audited_sets": runs[0]["honest"]["committed_all"],
+        "seconds_per_seed_median": float(np.median([r["seconds"] for r in runs])),
+    }
+    text = json.dumps({"summary": summary, "runs": runs}, indent=1) + "\n"
+    tmp = out.with_suffix(".tmp")
+    tmp.write_text(text, encoding="utf-8")
+    tmp.replace(out)
+
+
+if __name__ == "__main__":
+    main()
