@@ -72,13 +72,15 @@ def main() -> None:
     parser.add_argument("--power-seeds", type=int, default=20, help="how many of them also measure power")
     parser.add_argument("--original", default=None, help="the original release (for dbox-release's weights)")
     parser.add_argument("--data-dir", default=None)
+    parser.add_argument("--only", default=None, help="audit these entries alone (comma-separated method ids)")
     parser.add_argument("--out", type=Path, default=Path("docs/audit_rates.json"))
     args = parser.parse_args()
     seeds = _seeds(args.seeds)
     runs: list[dict[str, Any]] = []
     for i, seed in enumerate(seeds):
         start = time.perf_counter()
-        found = collect_errors(ROOT, seed, data_dir=args.data_dir, original=args.original)
+        only = args.only.split(",") if args.only else None
+        found = collect_errors(ROOT, seed, data_dir=args.data_dir, original=args.original, only=only)
         run: dict[str, Any] = {"seed": seed, "honest": _summary(assess(found))}
         if i < args.power_seeds:
             run["planted"] = {str(q): _summary(assess(planted(found, q, seed))) for q in FRACTIONS}
@@ -102,7 +104,8 @@ def _write(out: Path, runs: list[dict[str, Any]], args: argparse.Namespace) -> N
             }
     summary = {
         "command": f"nice -n 19 python scripts/audit_rates.py --seeds {args.seeds} --power-seeds {args.power_seeds}"
-        + (" --original ORIGINAL" if args.original else ""),
+        + (" --original ORIGINAL" if args.original else "")
+        + (f" --only {args.only}" if args.only else ""),
         "seeds": n,
         "audits_with_a_false_alarm": sum(bool(r["honest"]["flagged"]) for r in runs),
         "false_alarms_by_entry": {m: sum(m in r["honest"]["flagged"] for r in runs) for m in entries},

@@ -314,13 +314,13 @@ def permutation_pvalues(
         (0.001, 0.001)
     """
     sets = list(committed)
-    observed, pooled, totals, base = {}, {}, {}, {}
+    observed, pooled, totals, sizes = {}, {}, {}, {}
     for s in sets:
         c, f = np.asarray(committed[s], np.float64), np.asarray(fresh[s], np.float64)
         pooled[s] = np.concatenate([c, f])
         totals[s] = pooled[s].sum(axis=0)
+        sizes[s] = (len(c), len(f))
         observed[s] = _statistic(c.sum(axis=0), totals[s], len(c), len(f))
-        base[s] = np.concatenate([np.ones(len(c)), np.zeros(len(f))])
     observed_all = np.mean([observed[s] for s in sets], axis=0)
     exceed = {s: np.zeros(len(observed[s]), np.int64) for s in sets}
     exceed_all = np.zeros(len(observed_all), np.int64)
@@ -329,9 +329,13 @@ def permutation_pvalues(
         rows = min(CHUNK, n_permutations - done)
         stats = []
         for s in sets:
-            labels = rng.permuted(np.broadcast_to(base[s], (rows, len(base[s]))), axis=1)
-            n = int(base[s].sum())
-            t = _statistic(labels @ pooled[s], totals[s], n, len(base[s]) - n)
+            n, m = sizes[s]
+            # a random relabelling: the smaller group's positions drawn, the other group the rest
+            labels = np.zeros((rows, n + m))
+            for row in labels:
+                row[rng.choice(n + m, min(n, m), replace=False)] = 1.0
+            drawn = labels @ pooled[s]
+            t = _statistic(drawn if n <= m else totals[s] - drawn, totals[s], n, m)
             exceed[s] += (t >= observed[s] - _tie(observed[s])).sum(axis=0)
             stats.append(t)
         t_all = np.mean(stats, axis=0)
