@@ -238,7 +238,9 @@ def shown(audits: Sequence[Mapping[str, Any]]) -> dict[str, dict[str, Any]]:
     Returns:
         Per audited method: ``seed``, ``file``, ``date``, ``runnable``, ``reason``, ``sets``
         (those drawn afresh), ``test`` (the committed mean over them), ``fresh`` and
-        ``fresh_interval``, ``difference``, ``p``, ``p_adjusted`` and ``flagged``.
+        ``fresh_interval``, ``difference``, ``p``, ``p_adjusted`` (of that mean), the
+        smallest adjusted p-value of the entry's tests (sets and mean), ``flagged`` (when
+        that is at most ``level``) and ``level``.
     """
     out: dict[str, dict[str, Any]] = {}
     for doc in sorted(audits, key=lambda d: (d["date"], d["seed"])):
@@ -257,6 +259,9 @@ def shown(audits: Sequence[Mapping[str, Any]]) -> dict[str, dict[str, Any]]:
                 "difference": t.get("difference"),
                 "p": t.get("p"),
                 "p_adjusted": t.get("p_adjusted"),
+                "p_adjusted_smallest": min(
+                    (x["p_adjusted"] for x in [*e["sets"].values(), t] if x), default=None
+                ),
                 "flagged": e["flagged"],
                 "level": doc["test"]["level"],
             }

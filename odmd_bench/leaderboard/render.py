@@ -191,13 +191,14 @@ def _audit_markdown(bd: Board, audits: Mapping[str, Mapping[str, Any]] | None) -
         "",
         f"Each entry re-run on fresh draws of the generated sets ({sets}) by `odmd-bench leaderboard "
         "audit`: **Test** is the mean of the committed means of those sets, **Fresh** the same on the "
-        "fresh draws with its 95% bootstrap interval. **Flagged**: the test score is better than the "
-        "fresh one by more than chance allows (one-sided permutation test, Holm-corrected over the "
-        f"audit's entries and sets, level {shown[0][1]['level']}; see leaderboard/README.md). Entries "
-        "not listed are not audited yet.",
+        "fresh draws with its 95% bootstrap interval. **Flagged**: on one of those sets or their mean, the "
+        "test score is better than the fresh one by more than chance allows (one-sided permutation "
+        "test, Holm-corrected over the audit's entries and tests, level "
+        f"{shown[0][1]['level']}: flagged when the smallest adjusted p is at most that; see "
+        "leaderboard/README.md). Entries not listed are not audited yet.",
         "",
     ]
-    head = ["Method", "Test", "Fresh", "95% interval", "Fresh - test", "p (Holm)", "Flagged", "Seed"]
+    head = ["Method", "Test", "Fresh", "95% interval", "Fresh - test", "Smallest p (Holm)", "Flagged", "Seed"]
     lines += _table_head(head, range(1, 6))
     for row, a in shown:
         method = _cell(row.entry.meta.name)
@@ -212,7 +213,9 @@ def _audit_markdown(bd: Board, audits: Mapping[str, Mapping[str, Any]] | None) -
             _fmt(a["fresh"]),
             f"[{_fmt(lo)}, {_fmt(hi)}]",
             f"{a['difference']:+.2f}".replace("-0.00", "+0.00"),
-            f"{a['p_adjusted']:.3f}" if a["p_adjusted"] >= 0.001 else f"{a['p_adjusted']:.1e}",
+            f"{a['p_adjusted_smallest']:.3f}"
+            if a["p_adjusted_smallest"] >= 0.001
+            else f"{a['p_adjusted_smallest']:.1e}",
             "**yes**" if a["flagged"] else "no",
             seed,
         ]
