@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import multiprocessing
 import time
 from pathlib import Path
 from typing import Any
@@ -72,22 +73,34 @@ def main() -> None:
     parser.add_argument("--power-seeds", type=int, default=20, help="how many of them also measure power")
     parser.add_argument("--original", default=None, help="the original release (for dbox-release's weights)")
     parser.add_argument("--data-dir", default=None)
+    parser.add_argument("--jobs", type=int, default=1, help="seeds audited at once (processes)")
     parser.add_argument("--only", default=None, help="audit these entries alone (comma-separated method ids)")
     parser.add_argument("--out", type=Path, default=Path("docs/audit_rates.json"))
     args = parser.parse_args()
     seeds = _seeds(args.seeds)
+    jobs = [(seed, i < args.power_seeds, args) for i, seed in enumerate(seeds)]
     runs: list[dict[str, Any]] = []
-    for i, seed in enumerate(seeds):
-        start = time.perf_counter()
-        only = args.only.split(",") if args.only else None
-        found = collect_errors(ROOT, seed, data_dir=args.data_dir, original=args.original, only=only)
-        run: dict[str, Any] = {"seed": seed, "honest": _summary(assess(found))}
-        if i < args.power_seeds:
-            run["planted"] = {str(q): _summary(assess(planted(found, q, seed))) for q in FRACTIONS}
-        run["seconds"] = round(time.perf_counter() - start, 1)
-        runs.append(run)
-        print(f"seed {seed}: flagged {run['honest']['flagged'] or 'none'} ({run['seconds']} s)", flush=True)
-        _write(args.out, runs, args)
+    with multiprocessing.Pool(args.jobs) as pool:
+        for run in pool.imap(_one, jobs):
+            runs.append(run)
+            print(
+                f"seed {run['seed']}: flagged {run['honest']['flagged'] or 'none'} ({run['seconds']} s)",
+                flush=True,
+            )
+            _write(args.out, runs, args)
+
+
+def _one(job: tuple[int, bool, argparse.Namespace]) -> dict[str, Any]:
+    """One seed's audit, honest and (``power``) with the planted advantages."""
+    seed, power, args = job
+    start = time.perf_counter()
+    only = args.only.split(",") if args.only else None
+    found = collect_errors(ROOT, seed, data_dir=args.data_dir, original=args.original, only=only)
+    run: dict[str, Any] = {"seed": seed, "honest": _summary(assess(found))}
+    if power:
+        run["planted"] = {str(q): _summary(assess(planted(found, q, seed))) for q in FRACTIONS}
+    run["seconds"] = round(time.perf_counter() - start, 1)
+    return run
 
 
 def _write(out: Path, runs: list[dict[str, Any]], args: argparse.Namespace) -> None:

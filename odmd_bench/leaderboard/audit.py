@@ -226,9 +226,10 @@ def resolve_target(entry: Entry, repo: Path, original: str | os.PathLike[str] | 
     from odmd_bench import methods
 
     try:
-        name, options = parse_command(entry.meta.command, entry.benchmark)
+        name, given = parse_command(entry.meta.command, entry.benchmark)
     except ValueError as e:
         return Target(entry, reason=str(e))
+    options: dict[str, Any] = dict(given)
     try:
         method = methods.load(name)
     except UsageError as e:
