@@ -8,6 +8,10 @@ errors: on a random fraction ``q`` of the examples of each committed set the err
 set to 0 (the method answers the truth there, as a partial memoriser would), so the
 committed mean drops by about ``q`` times itself; a flagged entry is then a detection.
 
+With ``--fresh-vs-fresh`` each seed draws two fresh sets and tests one against the
+other, as if the first were the committed set: honest by construction on both sides,
+so the flags count the test's own false alarms, free of how the committed draw fell.
+
 Writes ``--out`` (JSON: per seed, the flagged entries and raw p-values; the summary) and
 prints the summary. Slow (every DBox configuration re-run per seed: about a minute per
 seed on 2 cores); run it with ``nice`` (output: docs/audit_rates.json)::
@@ -51,6 +55,15 @@ def planted(found: Collected, q: float, seed: int) -> Collected:
     return Collected(found.header, found.rows, found.audited, committed, found.fresh)
 
 
+def fresh_vs_fresh(found: Collected) -> Collected:
+    """Two fresh draws (``repeats=2``) as the committed set and the fresh one: honest by construction."""
+    committed, fresh = {}, {}
+    for s, f in found.fresh.items():
+        n = len(f) // 2
+        committed[s], fresh[s] = f[:n], f[n:]
+    return Collected({**found.header, "repeats": 1}, found.rows, found.audited, committed, fresh)
+
+
 def _summary(result: dict[str, Any]) -> dict[str, Any]:
     ps = [t["p"] for e in result["entries"] if e["runnable"] for t in [*e["sets"].values(), e["all"]]]
     return {
@@ -74,6 +87,12 @@ def main() -> None:
     parser.add_argument("--original", default=None, help="the original release (for dbox-release's weights)")
     parser.add_argument("--data-dir", default=None)
     parser.add_argument("--jobs", type=int, default=1, help="seeds audited at once (processes)")
+    parser.add_argument(
+        "--fresh-vs-fresh",
+        action="store_true",
+        help="test two fresh draws against each other instead of the committed sets against one: "
+        "the test's false-alarm rate over draws of both sides, free of the committed draw",
+    )
     parser.add_argument("--only", default=None, help="audit these entries alone (comma-separated method ids)")
     parser.add_argument("--out", type=Path, default=Path("docs/audit_rates.json"))
     args = parser.parse_args()
@@ -95,7 +114,12 @@ def _one(job: tuple[int, bool, argparse.Namespace]) -> dict[str, Any]:
     seed, power, args = job
     start = time.perf_counter()
     only = args.only.split(",") if args.only else None
-    found = collect_errors(ROOT, seed, data_dir=args.data_dir, original=args.original, only=only)
+    repeats = 2 if args.fresh_vs_fresh else 1
+    found = collect_errors(
+        ROOT, seed, repeats=repeats, data_dir=args.data_dir, original=args.original, only=only
+    )
+    if args.fresh_vs_fresh:
+        found = fresh_vs_fresh(found)
     run: dict[str, Any] = {"seed": seed, "honest": _summary(assess(found))}
     if power:
         run["planted"] = {str(q): _summary(assess(planted(found, q, seed))) for q in FRACTIONS}
@@ -118,7 +142,8 @@ def _write(out: Path, runs: list[dict[str, Any]], args: argparse.Namespace) -> N
     summary = {
         "command": f"nice -n 19 python scripts/audit_rates.py --seeds {args.seeds} --power-seeds {args.power_seeds}"
         + (" --original ORIGINAL" if args.original else "")
-        + (f" --only {args.only}" if args.only else ""),
+        + (f" --only {args.only}" if args.only else "")
+        + (" --fresh-vs-fresh" if args.fresh_vs_fresh else ""),
         "seeds": n,
         "audits_with_a_false_alarm": sum(bool(r["honest"]["flagged"]) for r in runs),
         "false_alarms_by_entry": {m: sum(m in r["honest"]["flagged"] for r in runs) for m in entries},

@@ -19,7 +19,8 @@ relabellings of the pooled errors, which is exact whatever the errors' distribut
 set (stratified). The p-values of every entry and test (three sets and ``all``) are
 corrected together by Holm's method; an entry is **flagged** when one of its adjusted
 p-values is at most :data:`LEVEL`. So an audit of honest entries flags any of them with
-probability at most :data:`LEVEL`, on any board.
+probability at most :data:`LEVEL` over the draws of the committed and the fresh sets
+(audits of one board share its committed draw, so they are not independent trials).
 
 Everything is seeded by the audit's seed: the same seed gives the same JSON.
 """
