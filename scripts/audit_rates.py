@@ -140,10 +140,11 @@ def _write(out: Path, runs: list[dict[str, Any]], args: argparse.Namespace) -> N
                 for m in entries
             }
     summary = {
-        "command": f"nice -n 19 python scripts/audit_rates.py --seeds {args.seeds} --power-seeds {args.power_seeds}"
+        "command": f"python scripts/audit_rates.py --seeds {args.seeds} --power-seeds {args.power_seeds}"
         + (" --original ORIGINAL" if args.original else "")
         + (f" --only {args.only}" if args.only else "")
-        + (" --fresh-vs-fresh" if args.fresh_vs_fresh else ""),
+        + (" --fresh-vs-fresh" if args.fresh_vs_fresh else "")
+        + (f" --jobs {args.jobs}" if args.jobs != 1 else ""),
         "seeds": n,
         "audits_with_a_false_alarm": sum(bool(r["honest"]["flagged"]) for r in runs),
         "false_alarms_by_entry": {m: sum(m in r["honest"]["flagged"] for r in runs) for m in entries},
