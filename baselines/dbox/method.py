@@ -90,7 +90,7 @@ def predict_report(
     if examples.n_obs != OBSERVATIONS:
         raise DataError(f"DBox takes {OBSERVATIONS} observations per example, got {examples.n_obs}")
     path, described = resolve_weights(examples, config, weights, selection)
-    model, form, sha = _load(path, weights_sha256, require_record=weights is None)
+    model, form, sha = _load(path, weights_sha256, require_record=weights is None, keep=True)
     if len(examples) == 0:
         depths = np.zeros(0, dtype=np.float64)
     else:

@@ -273,24 +273,42 @@ def load_model(
 
 
 def _load(
-    weights: str | os.PathLike[str] | None, weights_sha256: str | None, require_record: bool
+    weights: str | os.PathLike[str] | None,
+    weights_sha256: str | None,
+    require_record: bool,
+    keep: bool = False,
 ) -> tuple[DBox, str, str]:
+    """(network, formulation, SHA-256); ``keep``: reuse and keep the network (for prediction only)."""
     import torch
     from odmd_bench_baselines.dbox.model import DBox
 
     path = Path(weights) if weights is not None else DEFAULT_WEIGHTS
     data, sha = verify_weights(path, weights_sha256, require_record)
-    try:
-        state = torch.load(io.BytesIO(data), map_location="cpu", weights_only=True)
-    except Exception as e:  # torch/pickle raise many kinds for a damaged or foreign file
-        raise DataError(
-            f"{path} is not a loadable DBox checkpoint (read with weights_only=True): {load_failure(e)}"
-        ) from None
-    check_state_dict(state, str(path))
-    model = DBox()
-    model.load_state_dict({k: v.to(torch.float32) for k, v in state.items()})
-    model.eval()
+    model = _LOADED.get(sha) if keep else None
+    if model is None:
+        try:
+            state = torch.load(io.BytesIO(data), map_location="cpu", weights_only=True)
+        except Exception as e:  # torch/pickle raise many kinds for a damaged or foreign file
+            raise DataError(
+                f"{path} is not a loadable DBox checkpoint (read with weights_only=True): {load_failure(e)}"
+            ) from None
+        check_state_dict(state, str(path))
+        model = DBox()
+        model.load_state_dict({k: v.to(torch.float32) for k, v in state.items()})
+        model.eval()
+        if keep:
+            # For prediction only (which never changes a network): kept by the SHA-256 of
+            # the bytes just verified (always read and hashed again), so that runs of one
+            # checkpoint on several sets or entries (leaderboard audit) build it once.
+            while len(_LOADED) >= _KEEP_LOADED:
+                _LOADED.pop(next(iter(_LOADED)))
+            _LOADED[sha] = model
     return model, _formulation(path, sha), sha
+
+
+#: Built networks by checkpoint SHA-256 (at most ``_KEEP_LOADED``, the oldest dropped first).
+_LOADED: dict[str, DBox] = {}
+_KEEP_LOADED = 8
 
 
 def load_failure(e: BaseException) -> str:

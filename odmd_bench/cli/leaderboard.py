@@ -1,4 +1,4 @@
-"""``leaderboard build``, ``leaderboard check``, ``leaderboard add`` and ``leaderboard site``."""
+"""``leaderboard build``, ``check``, ``add``, ``site`` and ``audit``."""
 
 from __future__ import annotations
 
@@ -67,15 +67,27 @@ def build_command(root: Path | None, data_dir: Path | None, original: Path | Non
 @_root_option
 @_data_option
 @_original_option
-def check_command(root: Path | None, data_dir: Path | None, original: Path | None) -> None:
+@click.option(
+    "--audits",
+    "audits",
+    is_flag=True,
+    help="Also re-run every recorded audit (leaderboard/audits/SEED.json) and fail where one differs "
+    "(re-runs every audited method: about a minute).",
+)
+def check_command(root: Path | None, data_dir: Path | None, original: Path | None, audits: bool) -> None:
     """Fail (exit 2) unless every entry is valid and the committed table and JSON are what build writes now.
 
-    Every difference is named (file, row, field, old and new).
+    Every difference is named (file, row, field, old and new). Each recorded audit file
+    must be well formed and match the board; --audits re-runs them.
     """
     from odmd_bench.leaderboard import check
 
     folder = _root(root)
     problems = check(folder, data_dir, original)
+    if audits and not problems:
+        from odmd_bench.leaderboard.audit import rerun_audits
+
+        problems = rerun_audits(folder, data_dir, original, progress=lambda line: click.echo(line, err=True))
     if problems:
         raise ValidationError(
             f"leaderboard check failed ({folder}): {len(problems)} "
@@ -83,7 +95,8 @@ def check_command(root: Path | None, data_dir: Path | None, original: Path | Non
             "`odmd-bench leaderboard build` and commit LEADERBOARD.md, leaderboard.json and README.md",
             problems,
         )
-    click.echo(f"leaderboard check passed: {folder} is what build writes, every entry re-scored")
+    said = "; every recorded audit re-run" if audits else ""
+    click.echo(f"leaderboard check passed: {folder} is what build writes, every entry re-scored{said}")
 
 
 @leaderboard.command("add")
@@ -166,6 +179,83 @@ def site_command(
         click.echo(line)
     pages = sum(1 for name in files if name.endswith(".html"))
     click.echo(f"wrote {output}: {len(files)} files, {pages} pages (open {output / 'index.html'})")
+
+
+@leaderboard.command("audit")
+@click.option(
+    "--seed",
+    required=True,
+    type=click.IntRange(0, 2**53),
+    help="Seed of the fresh sets (and of the test's permutations); the same seed gives the same audit.",
+)
+@_root_option
+@click.option(
+    "--repeats",
+    default=1,
+    show_default=True,
+    type=click.IntRange(1, 100),
+    help="Fresh draws per set, pooled.",
+)
+@click.option(
+    "--size",
+    default=None,
+    type=click.IntRange(1, 1_000_000),
+    help="Examples per fresh set [default: as many as the committed set].",
+)
+@click.option(
+    "--format",
+    "fmt",
+    type=click.Choice(["table", "json"]),
+    default="table",
+    show_default=True,
+    help="Output format.",
+)
+@click.option(
+    "--record",
+    is_flag=True,
+    help="Write the audit to leaderboard/audits/SEED.json (then run leaderboard build).",
+)
+@_data_option
+@_original_option
+def audit_command(
+    seed: int,
+    root: Path | None,
+    repeats: int,
+    size: int | None,
+    fmt: str,
+    record: bool,
+    data_dir: Path | None,
+    original: Path | None,
+) -> None:
+    """Re-run every entry of the odmd-v1 test board on fresh draws of its generated sets.
+
+    The Normal, Camera and Object test sets are drawn again (same generator and
+    configuration, seeds derived from SEED; Robot is real and left out), every entry whose
+    command is `odmd-bench baseline NAME ...` of an installed method is re-run on them with
+    its recorded options, and its committed test means are compared with the fresh ones.
+    An entry is flagged when its committed score is better than chance allows (one-sided
+    permutation test, Holm-corrected; leaderboard/README.md). Exit status: 0 with nothing
+    flagged, 1 when an entry is flagged, 2 on bad input.
+    """
+    from odmd_bench.leaderboard.audit import audit, audit_json, audit_table, flagged
+    from odmd_bench.leaderboard.audit_files import record as write_record
+
+    folder = _root(root)
+    result = audit(
+        folder,
+        seed,
+        repeats=repeats,
+        size=size,
+        data_dir=data_dir,
+        original=original,
+        progress=lambda line: click.echo(line, err=True),
+    )
+    if record:
+        path = write_record(folder, result)
+        click.echo(f"recorded {path}; now run `odmd-bench leaderboard build` and commit it", err=True)
+    click.echo(audit_json(result) if fmt == "json" else audit_table(result), nl=False)
+    if flagged(result):
+        click.get_current_context().exit(1)
 
 
 COMMANDS: list[click.Command] = [leaderboard]

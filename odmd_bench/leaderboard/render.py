@@ -8,8 +8,9 @@ from __future__ import annotations
 
 import json
 import os
-from collections.abc import Sequence
-from dataclasses import dataclass
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
 
 from odmd_bench.data.registry import BENCHMARKS
 from odmd_bench.errors import ValidationError
@@ -34,6 +35,8 @@ class Built:
     markdown: str
     json_text: str
     readme_block: str
+    #: ``{method: its latest recorded audit}`` (:func:`~odmd_bench.leaderboard.audit_files.shown`).
+    audits: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
 
 
 def build(
@@ -49,8 +52,13 @@ def build(
         ValidationError: Naming every problem with the entries (metadata, data,
             predictions) and with ``reported.yaml``.
     """
+    from odmd_bench.leaderboard.audit_files import audit_problems, read_audits, shown
+
     n = resamples(n_resamples)
     boards, problems = collect(root, data_dir, original, n_resamples=n)
+    recorded, found = read_audits(root)
+    problems += found + audit_problems(recorded, boards)
+    audits = shown(recorded)
     reported: list[ReportedResult] = []
     try:
         reported = read_reported(root)
@@ -61,9 +69,10 @@ def build(
     return Built(
         boards=tuple(boards),
         reported=tuple(reported),
-        markdown=render_markdown(boards, reported, n_resamples=n),
-        json_text=render_json(boards, reported, n_resamples=n),
+        markdown=render_markdown(boards, reported, n_resamples=n, audits=audits),
+        json_text=render_json(boards, reported, n_resamples=n, audits=audits),
         readme_block=render_readme_block(boards),
+        audits=audits,
     )
 
 
@@ -87,7 +96,9 @@ def _diff_dict(d: PairedDifference | None, a: str, b: str) -> dict[str, object] 
     }
 
 
-def _json_row(board: Board, pos: int, row: Row, previous_leader: str) -> dict[str, object]:
+def _json_row(
+    board: Board, pos: int, row: Row, previous_leader: str, audit: Mapping[str, Any] | None = None
+) -> dict[str, object]:
     res = row.result
     return {
         "position": pos,
@@ -106,6 +117,7 @@ def _json_row(board: Board, pos: int, row: Row, previous_leader: str) -> dict[st
         "versus_group_leader": _diff_dict(row.versus_leader, row.leader, row.entry.method),
         "versus_previous_group_leader": _diff_dict(row.versus_previous, previous_leader, row.entry.method),
         "warnings": list(res.warnings),
+        "audit": dict(audit) if audit is not None else None,
         "entry": f"{ENTRIES}/{row.entry.key}",
         "predictions_file": row.entry.predictions.name,
         "predictions_csv_sha256": res.provenance["predictions_sha256"],
@@ -115,16 +127,24 @@ def _json_row(board: Board, pos: int, row: Row, previous_leader: str) -> dict[st
 
 
 def render_json(
-    boards: Sequence[Board], reported: Sequence[ReportedResult], *, n_resamples: int | None = None
+    boards: Sequence[Board],
+    reported: Sequence[ReportedResult],
+    *,
+    n_resamples: int | None = None,
+    audits: Mapping[str, Mapping[str, Any]] | None = None,
 ) -> str:
-    """``leaderboard.json``: every board's rows with all metrics, metadata and provenance."""
+    """``leaderboard.json``: every board's rows with all metrics, metadata and provenance.
+
+    A row of the audited board (odmd-v1 test) has ``audit``: its latest recorded
+    fresh-seed audit (:func:`~odmd_bench.leaderboard.audit_files.shown`), else null.
+    """
     out_boards = []
     for bd in boards:
         rows, previous_leader = [], ""
         for pos, row in enumerate(bd.rows, 1):
             if row.versus_previous is not None:
                 previous_leader = next(r.leader for r in bd.rows if r.group == row.group - 1)
-            rows.append(_json_row(bd, pos, row, previous_leader))
+            rows.append(_json_row(bd, pos, row, previous_leader, _audit_of(bd, row, audits)))
         out_boards.append(
             {
                 "benchmark": bd.benchmark,
@@ -149,6 +169,58 @@ def render_json(
         "reported": [r.to_dict() for r in reported],
     }
     return json.dumps(out, indent=2, sort_keys=False, ensure_ascii=False) + "\n"
+
+
+def _audit_of(
+    bd: Board, row: Row, audits: Mapping[str, Mapping[str, Any]] | None
+) -> Mapping[str, Any] | None:
+    """The audit shown for ``row`` (audits are of the odmd-v1 test board only)."""
+    if not audits or (bd.benchmark, bd.split) != ("odmd-v1", "test"):
+        return None
+    return audits.get(row.entry.method)
+
+
+def _audit_markdown(bd: Board, audits: Mapping[str, Mapping[str, Any]] | None) -> list[str]:
+    """The board's fresh-seed audit table (README "Is a method tuned on the test set?"), if any."""
+    shown = [(row, a) for row in bd.rows if (a := _audit_of(bd, row, audits)) is not None]
+    if not shown:
+        return []
+    sets = ", ".join(SET_TITLES.get(s, s) for s in shown[0][1]["sets"])
+    lines = [
+        f"### {bd.spec.key}: fresh-seed audit",
+        "",
+        f"Each entry re-run on fresh draws of the generated sets ({sets}) by `odmd-bench leaderboard "
+        "audit`: **Test** is the mean of the committed means of those sets, **Fresh** the same on the "
+        "fresh draws with its 95% bootstrap interval. **Flagged**: on one of those sets or their mean, the "
+        "test score is better than the fresh one by more than chance allows (one-sided permutation "
+        "test, Holm-corrected over the audit's entries and tests, level "
+        f"{shown[0][1]['level']}: flagged when the smallest adjusted p is at most that; see "
+        "leaderboard/README.md). Entries not listed are not audited yet.",
+        "",
+    ]
+    head = ["Method", "Test", "Fresh", "95% interval", "Fresh - test", "Smallest p (Holm)", "Flagged", "Seed"]
+    lines += _table_head(head, range(1, 6))
+    for row, a in shown:
+        method = _cell(row.entry.meta.name)
+        seed = f"[{a['seed']}]({a['file']})"
+        if not a["runnable"]:
+            lines.append(f"| {method} | - | - | - | - | - | not re-run: {_cell(a['reason'])} | {seed} |")
+            continue
+        lo, hi = a["fresh_interval"]
+        cells = [
+            method,
+            _fmt(a["test"]),
+            _fmt(a["fresh"]),
+            f"[{_fmt(lo)}, {_fmt(hi)}]",
+            f"{a['difference']:+.2f}".replace("-0.00", "+0.00"),
+            f"{a['p_adjusted_smallest']:.3f}"
+            if a["p_adjusted_smallest"] >= 0.001
+            else f"{a['p_adjusted_smallest']:.1e}",
+            "**yes**" if a["flagged"] else "no",
+            seed,
+        ]
+        lines.append("| " + " | ".join(cells) + " |")
+    return [*lines, ""]
 
 
 def _cell(text: str) -> str:
@@ -206,7 +278,7 @@ def _vs_cell(row: Row) -> str:
     return format_difference(vs.difference, vs.ci_low, vs.ci_high)
 
 
-def _board_markdown(bd: Board) -> list[str]:
+def _board_markdown(bd: Board, audits: Mapping[str, Mapping[str, Any]] | None = None) -> list[str]:
     desc = BENCHMARKS[bd.benchmark].description
     if not bd.rows:
         return [f"## {bd.spec.key}", "", f"Data: {desc}.", "", _empty(bd), ""]
@@ -234,7 +306,7 @@ def _board_markdown(bd: Board) -> list[str]:
             meta.date,
         ]
         lines.append("| " + " | ".join(cells) + " |")
-    return [*lines, ""]
+    return [*lines, "", *_audit_markdown(bd, audits)]
 
 
 def _reported_markdown(boards: Sequence[Board], reported: Sequence[ReportedResult]) -> list[str]:
@@ -279,7 +351,11 @@ def _reported_markdown(boards: Sequence[Board], reported: Sequence[ReportedResul
 
 
 def render_markdown(
-    boards: Sequence[Board], reported: Sequence[ReportedResult], *, n_resamples: int | None = None
+    boards: Sequence[Board],
+    reported: Sequence[ReportedResult],
+    *,
+    n_resamples: int | None = None,
+    audits: Mapping[str, Mapping[str, Any]] | None = None,
 ) -> str:
     """``LEADERBOARD.md``: one ranked table per board, then the reported table."""
     lines = [
@@ -299,7 +375,7 @@ def render_markdown(
         "",
     ]
     for bd in boards:
-        lines += _board_markdown(bd)
+        lines += _board_markdown(bd, audits)
     if reported:
         lines += _reported_markdown(boards, reported)
     return "\n".join(lines).rstrip("\n") + "\n"
