@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 import subprocess
 import sys
 import time
@@ -970,3 +971,32 @@ def test_a_record_cannot_change_the_formulation_of_its_weights(tmp_path: Path) -
     with pytest.raises(DataError, match="these are the shipped abs weights, of formulation abs"):
         dbox.predict(ex, weights=copy)
     assert dbox.predict_report(ex, config="abs")[1]["formulation"] == "abs"
+
+
+@pytest.mark.slow
+def test_two_runs_on_a_loaded_machine_train_the_same_weights(tmp_path: Path) -> None:
+    """Issue 38's check: one command run twice, each in a fresh process, while other processes keep every core busy.
+
+    With the kernel chosen by timing, two of six such runs trained different weights.
+    """
+    worker = Path(__file__).with_name("dbox_worker.py")
+    busy = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(os.cpu_count() or 2)]
+    try:
+        weights = []
+        for name in ("a", "b"):
+            out = tmp_path / name
+            args = ["train-dbox", "--config", "p", "--steps", "20", "--val-every", "10", "--seed", "3"]
+            subprocess.run(
+                [sys.executable, str(worker), *args, "--out", str(out)],
+                check=True,
+                timeout=900,
+                capture_output=True,
+            )
+            weights.append(_weights(out / "dbox_p.pt"))
+            assert json.loads((out / "dbox_p.json").read_text())["cpu_kernels"] == "plain"
+    finally:
+        for p in busy:
+            p.kill()
+            p.wait()
+    assert weights[0].keys() == weights[1].keys()
+    assert all(torch.equal(weights[0][k], weights[1][k]) for k in weights[0])

@@ -224,6 +224,30 @@ def test_bf16_trains_on_the_cpu(tmp_path: Path) -> None:
         train("p", 4, tmp_path / "bf16", val_every=2, resume=True, **opts)  # type: ignore[arg-type]
 
 
+def test_a_torchrun_restart_resumes_and_the_batch_size_is_an_option(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A restart by torchrun (--max-restarts: the same command again) continues the run in --out."""
+    import odmd_bench_baselines.dbox.train as train_module
+    from click.testing import CliRunner
+
+    from odmd_bench.cli.main import cli
+
+    monkeypatch.setattr(train_module.odmd_bench, "load_split", lambda *a, **k: _tiny_val())
+    out = tmp_path / "run"
+    args = _args(out, 4, 2, "--batch-size", "16")
+    first = CliRunner().invoke(cli, args)
+    assert first.exit_code == 0, first.output
+    record = json.loads((out / "dbox_p.json").read_text())
+    assert record["batch_size"] == 16 and "--batch-size 16" in record["command"]
+    again = CliRunner().invoke(cli, args)
+    assert again.exit_code == 2 and "--resume" in again.output  # a new launch must say so
+    monkeypatch.setenv("TORCHELASTIC_RESTART_COUNT", "1")
+    restarted = CliRunner().invoke(cli, args)
+    assert restarted.exit_code == 0, restarted.output
+    assert "best step" in restarted.output  # the finished run, continued: nothing left to do
+
+
 @pytest.mark.skipif(not torch.cuda.is_available(), reason="no CUDA device")
 @pytest.mark.parametrize("precision", ["fp32", "bf16"])
 def test_a_few_steps_on_cuda(tmp_path: Path, precision: str) -> None:

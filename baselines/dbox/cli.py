@@ -86,6 +86,13 @@ def config_option(**kwargs: Any) -> Callable[[Callable[..., Any]], Callable[...,
     "odms-detection for the z-axis configurations]. The training data do not depend on it.",
 )
 @click.option(
+    "--batch-size",
+    type=click.IntRange(min=1),
+    default=512,
+    show_default=True,
+    help="Examples per step, over all processes (the paper's 512); see docs/dbox.md for the learning rate.",
+)
+@click.option(
     "--precision",
     type=click.Choice(["fp32", "bf16"]),
     default="fp32",
@@ -113,6 +120,7 @@ def train_dbox(
     init: Path | None,
     threads: int,
     val_benchmark: str | None,
+    batch_size: int,
     precision: str,
     dist_timeout: float,
     data_dir: Path | None,
@@ -133,11 +141,16 @@ def train_dbox(
 
     if threads:
         torch.set_num_threads(threads)
+    restarts = os.environ.get("TORCHELASTIC_RESTART_COUNT", "0")
+    if not resume and restarts.isdigit() and int(restarts) > 0 and (out / "last.pt").exists():
+        resume = True  # torchrun restarted the processes (--max-restarts): continue the run
+
     # The canonical command that reproduces this run (every option spelt out).
     args = ["odmd-bench", "train-dbox", "--config", config, "--steps", str(steps), "--seed", str(seed)]
     args += ["--val-every", str(val_every)] if val_every is not None else []
     args += ["--schedule", schedule, "--lr", f"{lr:g}"] + (["--init", str(init)] if init else [])
     args += ["--val-benchmark", val_benchmark] if val_benchmark is not None else []
+    args += ["--batch-size", str(batch_size)] if batch_size != 512 else []
     args += ["--threads", str(threads), "--device", device, "--precision", precision, "--out", str(out)]
     args += ["--resume"] if resume else []
     # The kernel setting changes the weights' last bits: part of the command when it does.
@@ -160,6 +173,7 @@ def train_dbox(
         progress=sys.stderr,
         precision=precision,
         dist_timeout=dist_timeout,
+        batch_size=batch_size,
     )
     if os.environ.get("RANK", "0") != "0":  # process 0 reports; the others did not validate
         return
