@@ -132,13 +132,13 @@ def test_a_killed_process_stops_the_run_and_it_resumes_on_another_number(tmp_pat
     of one process's whole run.
     """
     out = tmp_path / "run"
-    done = _torchrun(_args(out, 8, 4), tmp_path, DBOX_TEST_FAIL="1:6:kill")
+    done = _torchrun(_args(out, 8, 4, "--batch-size", "64"), tmp_path, DBOX_TEST_FAIL="1:6:kill")
     assert done.returncode != 0
     assert "Signal 9 (SIGKILL)" in done.stderr and "rank      : 1" in done.stderr, done.stderr[-3000:]
     assert torch.load(out / "last.pt", weights_only=True)["step"] == 4
-    _one_process(out, 8, 4, resume=True)
+    _one_process(out, 8, 4, resume=True, batch_size=64)
     whole = tmp_path / "whole"
-    _one_process(whole, 8, 4)
+    _one_process(whole, 8, 4, batch_size=64)
     assert _rel_diff(_final(out), _final(whole)) <= 1e-4
 
 
