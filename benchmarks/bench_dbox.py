@@ -16,10 +16,10 @@ Each case runs with 1 torch thread and with 2 (this machine's cores):
 - ``impl="onednn"`` is ``DBox.forward`` (and its hand-written backward) with every
   product on oneDNN's kernel (``ODMD_BENCH_ONEDNN=1``); ``impl="plain"`` is the same
   code on plain torch products (``ODMD_BENCH_ONEDNN=0``, as on a torch build without
-  oneDNN); ``impl="auto"`` is what ships: for training, the kernel the per-process
-  probe picks; for inference, plain products
+  oneDNN); ``impl="auto"`` is what ships: plain products, for training and inference
   (:func:`odmd_bench_baselines.dbox.model.use_onednn`; ``extra_info["auto_picks"]``
-  says which); ``impl="reference"`` is
+  says which; before issue 38 a per-process timed probe picked the training kernel);
+  ``impl="reference"`` is
   :func:`odmd_bench_baselines.dbox.model.reference_forward`, the original release's forward
   written as it was (all four gate blocks computed twice per observation, per-step
   slices, ``cat`` before every FC layer) with autograd's backward. All are measured in

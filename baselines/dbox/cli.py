@@ -85,6 +85,27 @@ def config_option(**kwargs: Any) -> Callable[[Callable[..., Any]], Callable[...,
     help="Benchmark whose val split selects the model [default: odmd-v1 for p, ns, abs; "
     "odms-detection for the z-axis configurations]. The training data do not depend on it.",
 )
+@click.option(
+    "--batch-size",
+    type=click.IntRange(min=1),
+    default=512,
+    show_default=True,
+    help="Examples per step, over all processes (the paper's 512); see docs/dbox.md for the learning rate.",
+)
+@click.option(
+    "--precision",
+    type=click.Choice(["fp32", "bf16"]),
+    default="fp32",
+    show_default=True,
+    help="bf16: the forward pass in automatic mixed precision (bfloat16 products; meant for GPUs).",
+)
+@click.option(
+    "--dist-timeout",
+    type=click.FloatRange(min=0.0, min_open=True),
+    default=600.0,
+    show_default=True,
+    help="Under torchrun: seconds a process waits for the others before the run stops with an error.",
+)
 @data_dir_option
 def train_dbox(
     config: str,
@@ -99,26 +120,42 @@ def train_dbox(
     init: Path | None,
     threads: int,
     val_benchmark: str | None,
+    batch_size: int,
+    precision: str,
+    dist_timeout: float,
     data_dir: Path | None,
 ) -> None:
     """Train DBox on freshly generated examples; keep the best model by validation.
 
     Prints a progress line (loss, latest and best validation score). The best model
     is written to OUT/dbox_CONFIG.pt (original key layout) with a JSON record beside it.
+
+    Under torchrun (torchrun --nproc_per_node N --no-python odmd-bench train-dbox ...)
+    N processes train one model with DistributedDataParallel (gloo on the CPU, nccl on
+    CUDA), each on its share of the same global batch of 512; process 0 writes.
     """
+    import os
+
     import torch  # a missing torch is reported by the command line with the extra to install
     from odmd_bench_baselines.dbox.train import train
 
     if threads:
         torch.set_num_threads(threads)
+    restarts = os.environ.get("TORCHELASTIC_RESTART_COUNT", "0")
+    if not resume and restarts.isdigit() and int(restarts) > 0 and (out / "last.pt").exists():
+        resume = True  # torchrun restarted the processes (--max-restarts): continue the run
+
     # The canonical command that reproduces this run (every option spelt out).
     args = ["odmd-bench", "train-dbox", "--config", config, "--steps", str(steps), "--seed", str(seed)]
     args += ["--val-every", str(val_every)] if val_every is not None else []
     args += ["--schedule", schedule, "--lr", f"{lr:g}"] + (["--init", str(init)] if init else [])
     args += ["--val-benchmark", val_benchmark] if val_benchmark is not None else []
-    args += ["--threads", str(threads), "--device", device, "--out", str(out)]
+    args += ["--batch-size", str(batch_size)] if batch_size != 512 else []
+    args += ["--threads", str(threads), "--device", device, "--precision", precision, "--out", str(out)]
     args += ["--resume"] if resume else []
-    command = shlex.join(args)
+    # The kernel setting changes the weights' last bits: part of the command when it does.
+    kernels = ["ODMD_BENCH_ONEDNN=1"] if os.environ.get("ODMD_BENCH_ONEDNN") == "1" else []
+    command = shlex.join(kernels + args)
     result = train(
         config,
         steps,
@@ -134,7 +171,12 @@ def train_dbox(
         val_benchmark=val_benchmark,
         command=command,
         progress=sys.stderr,
+        precision=precision,
+        dist_timeout=dist_timeout,
+        batch_size=batch_size,
     )
+    if os.environ.get("RANK", "0") != "0":  # process 0 reports; the others did not validate
+        return
     scores = ", ".join(f"{k} {v:.3f}" for k, v in result.best_scores.items())
     click.echo(f"best step {result.best_step}: val mean percent error {scores}")
     click.echo(f"weights: {result.weights}")

@@ -17,9 +17,8 @@ then ``d = h``; six times ``d = relu(linears.k([d, X]))`` with ``X`` the whole i
 flattened observation by observation (70 numbers); the output is ``linears.6(d)``.
 
 The implementation computes exactly that, with a hand-written backward pass and
-every matrix product in one call of a float32 kernel chosen per process (oneDNN's or
-plain torch products, whichever a timed probe finds faster here: see
-:func:`use_onednn`). Its speed against the original release's formulation, by CPU, is
+every matrix product in one call of a float32 kernel: plain torch products, or oneDNN's
+where ``ODMD_BENCH_ONEDNN=1`` asks for it (see :func:`use_onednn`). Its speed against the original release's formulation, by CPU, is
 in ``docs/dbox.md`` and ``benchmarks/results/``. :func:`reference_forward` is the
 original's straightforward per-gate version, kept for tests and benchmarks and used for
 an input that needs a gradient itself.
@@ -33,7 +32,6 @@ import contextlib
 import functools
 import math
 import os
-import time
 from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Any
@@ -126,10 +124,10 @@ class DBox(nn.Module):
 # PyTorch's own compiler emits; it applies the gate sigmoid inside the product) or on
 # plain torch products (MKL's SGEMM behind ``torch.addmm``). Which is faster depends on
 # the CPU: oneDNN was faster on one AMD EPYC, slower on another and on an Intel Xeon
-# (AVX-512, AMX): so :func:`use_onednn` decides once per process by timing both for
-# training, and keeps plain products for inference, whose output must not depend on a
-# timing (``ODMD_BENCH_ONEDNN`` overrides). Elsewhere (float64, CUDA, builds without oneDNN)
-# the code runs on plain torch products.
+# (AVX-512, AMX). The kernel is never chosen by timing: a timed choice flips on a busy
+# machine, and the two kernels differ at float32 rounding, so two runs of one command
+# would train different weights. Plain products unless ``ODMD_BENCH_ONEDNN=1``; elsewhere
+# (float64, CUDA, builds without oneDNN) the code runs on plain torch products.
 #
 # The LSTM runs feature-major, one contiguous (features, B) block per observation:
 #
@@ -149,9 +147,8 @@ _CT = _K  # rows of c_t
 _Q = _CT + HIDDEN  # 392
 
 
-#: Values of ``ODMD_BENCH_ONEDNN``: ``auto`` (default: plain products for inference, a
-#: timed probe decides for training), ``1`` (always oneDNN where available), ``0`` (plain
-#: torch products).
+#: Values of ``ODMD_BENCH_ONEDNN``: ``auto`` (the default: plain torch products), ``1``
+#: (oneDNN where available), ``0`` (plain torch products).
 KERNEL_SETTINGS = ("auto", "1", "0")
 _forced: str | None = None  # set by kernels()
 
@@ -173,25 +170,22 @@ def onednn_available() -> bool:
 def use_onednn(train: bool) -> bool:
     """Whether float32 CPU products run on oneDNN (else plain torch products).
 
-    The rule: ``ODMD_BENCH_ONEDNN=0`` never, ``1`` always (where oneDNN works); unset or
-    ``auto``: never for inference (``train`` false), so that predictions, which are
-    results, are the same bit for bit in every run and at every thread count; for
-    training, once per process and thread count, a probe times both kernels on a forward
-    and backward of a batch of 512 (interleaved, best of three, about 0.1-0.3 s) and
-    keeps oneDNN only if it is faster (the record of a run says which ran). Both give the
-    same numbers to float32 rounding.
+    The rule: ``ODMD_BENCH_ONEDNN=1`` oneDNN (where it works); unset, ``auto`` or ``0``:
+    plain products, for training and inference alike. Nothing here depends on a timing or
+    on the machine's load, so a run's weights and predictions depend only on its command,
+    the package and the kind of CPU. (An earlier rule timed both kernels on the first
+    training step and kept the faster: on a busy machine the choice flipped from run to
+    run, and so did the weights.) Both kernels give the same numbers to float32 rounding;
+    ``train`` is kept for callers that ask per use.
 
     Raises:
         UsageError: ``ODMD_BENCH_ONEDNN`` has another value.
     """
+    del train  # the same rule for training and inference
     setting = _forced or os.environ.get("ODMD_BENCH_ONEDNN", "auto") or "auto"
     if setting not in KERNEL_SETTINGS:
         raise UsageError(f"ODMD_BENCH_ONEDNN={setting!r}: expected one of {', '.join(KERNEL_SETTINGS)}")
-    if setting == "0" or not onednn_available():
-        return False
-    if setting == "1":
-        return True
-    return train and _probe(train, torch.get_num_threads())
+    return setting == "1" and onednn_available()
 
 
 @contextlib.contextmanager
@@ -205,32 +199,6 @@ def kernels(setting: str) -> Iterator[None]:
         yield
     finally:
         _forced = before
-
-
-@functools.cache
-def _probe(train: bool, threads: int) -> bool:
-    """Whether oneDNN runs a DBox pass faster than plain products here (see :func:`use_onednn`)."""
-    del threads  # part of the cache key only
-    gen = torch.Generator().manual_seed(0)
-    model = DBox(generator=gen)
-    packed = _Packed(*(t.detach() for t in (model.W, model.U, model.bias, model.V, *model.fc_parameters())))
-    x = torch.rand(512 if train else 1000, N_OBS, N_FEATURES, generator=gen)
-    grad = torch.ones(x.shape[0])
-
-    def run(fast: bool) -> float:
-        t0 = time.perf_counter()
-        with torch.no_grad():
-            out, saved = _forward(x, packed, keep=train, fast=fast)
-            if train:
-                _backward(grad, saved, packed, fast=fast)
-        assert out.shape == grad.shape
-        return time.perf_counter() - t0
-
-    times: dict[bool, list[float]] = {True: [], False: []}
-    for _ in range(4):  # the first round warms both up and is not counted
-        for fast in (True, False):
-            times[fast].append(run(fast))
-    return min(times[True][1:]) < min(times[False][1:])
 
 
 def _fast(x: torch.Tensor, train: bool) -> bool:
@@ -439,8 +407,8 @@ def reference_forward(model: DBox, x: torch.Tensor) -> torch.Tensor:
     """
     b, n, _ = x.shape
     hs = HIDDEN
-    h = torch.zeros(b, hs, dtype=x.dtype)
-    c = torch.zeros(b, hs, dtype=x.dtype)
+    h = torch.zeros(b, hs, dtype=x.dtype, device=x.device)
+    c = torch.zeros(b, hs, dtype=x.dtype, device=x.device)
     for t in range(n):
         x_t = x[:, t, :]
         gates = x_t @ model.W + h @ model.U + model.bias + c @ model.V

@@ -16,6 +16,13 @@ same seed and thread count gives the same weights, and a resumed run continues
 exactly where the interrupted one was (model, optimizer, step, data generator state,
 validation history are all in ``last.pt``).
 
+Under ``torchrun`` the run is one model trained by several processes with
+DistributedDataParallel (:mod:`.distributed`): every process draws the step's whole
+batch from the same generator and trains on its own rows of it, so the global batch of
+a step is the same examples whatever the number of processes, and the weights equal a
+one-process run's to float rounding. Process 0 alone validates and writes; a run
+resumes with any number of processes.
+
 A second, lower-rate cycle can start from an earlier run's best weights (``init``,
 with a lower peak ``lr``): the optimizer starts fresh, the schedule is a new cosine.
 
@@ -48,7 +55,18 @@ from typing import Any, TextIO
 import numpy as np
 import torch
 from odmd_bench_baselines.dbox import load_failure, per_set_path
-from odmd_bench_baselines.dbox.model import DBox, make_inputs, predict_depth, use_onednn
+from odmd_bench_baselines.dbox.distributed import (
+    DEFAULT_TIMEOUT_S,
+    DistContext,
+    all_sum,
+    cleanup,
+    collective_failure,
+    launch_ranks,
+    setup,
+    shard,
+)
+from odmd_bench_baselines.dbox.distributed import resolve_device as _resolve_device
+from odmd_bench_baselines.dbox.model import DBox, make_inputs, predict_depth, reference_forward, use_onednn
 
 import odmd_bench
 from odmd_bench import (
@@ -65,6 +83,9 @@ from odmd_bench import (
 BATCH_SIZE = 512
 LEARNING_RATE = 1e-3
 SCHEDULES = ("cosine", "constant")
+#: ``fp32``: float32 throughout; ``bf16``: the forward pass under automatic mixed
+#: precision (bfloat16 products), the loss, gradients, Adam and validation in float32.
+PRECISIONS = ("fp32", "bf16")
 STATE_FILE = "last.pt"
 
 
@@ -132,25 +153,41 @@ def make_optimizer(model: torch.nn.Module, lr: float = LEARNING_RATE) -> torch.o
 
 def resolve_device(device: str) -> torch.device:
     """``auto`` (CUDA when available, else CPU), ``cpu`` or ``cuda``."""
-    if device == "auto":
-        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
-    if device == "cpu":
-        return torch.device("cpu")
-    if device == "cuda":
-        if not torch.cuda.is_available():
-            raise UsageError("--device cuda was asked for but torch sees no CUDA device; use auto or cpu")
-        return torch.device("cuda")
-    raise UsageError(f"unknown device {device!r}; expected one of auto, cpu, cuda")
+    return _resolve_device(device)
+
+
+class _Step(torch.nn.Module):
+    """The network's training forward pass, in the run's precision (what DDP wraps).
+
+    ``bf16`` runs the original formulation (:func:`reference_forward`: autograd through
+    plain torch operations, which autocast casts) under autocast; ``fp32`` the model
+    itself, the same arithmetic as a one-process run without this wrapper.
+    """
+
+    def __init__(self, model: DBox, precision: str) -> None:
+        super().__init__()
+        self.model = model
+        self.precision = precision
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        if self.precision == "bf16":
+            with torch.autocast(x.device.type, dtype=torch.bfloat16):
+                return reference_forward(self.model, x).float()
+        out: torch.Tensor = self.model(x)
+        return out
 
 
 def batch_tensors(
-    examples: Examples, formulation: str, device: torch.device
+    examples: Examples, formulation: str, device: torch.device, rows: slice = slice(None)
 ) -> tuple[torch.Tensor, torch.Tensor, np.ndarray]:
-    """Network input (B, n_obs, 7), target (B,) on ``device``, and scale (B,) float64."""
+    """Network input (B, n_obs, 7), target (B,) on ``device``, and scale (B,) float64.
+
+    ``rows``: the rows of the batch this process trains on (all by default).
+    """
     inp = make_inputs(examples, formulation)
-    x = torch.from_numpy(inp.x).to(device)
-    y = torch.from_numpy(inp.target).to(device)
-    return x, y, inp.scale
+    x = torch.from_numpy(inp.x[rows]).to(device, non_blocking=True)
+    y = torch.from_numpy(inp.target[rows]).to(device, non_blocking=True)
+    return x, y, inp.scale[rows]
 
 
 def validation_scores(
@@ -241,6 +278,8 @@ def train(
     progress: TextIO | None = sys.stderr,
     progress_every: int = 50,
     on_step: Callable[[int, float], None] | None = None,
+    precision: str = "fp32",
+    dist_timeout: float = DEFAULT_TIMEOUT_S,
 ) -> TrainResult:
     """Train DBox in one of the paper's configurations; keep the best model by validation.
 
@@ -271,10 +310,17 @@ def train(
         command: the command line to record beside the weights.
         progress: stream for the progress line (None: silent).
         progress_every: steps between progress lines when not on a terminal.
-        on_step: called with (step, loss) after every step (for tests).
+        on_step: called with (step, loss) after every step (for tests; on CUDA in
+            bursts, at each progress line, since a per-step loss would copy from the GPU).
+        precision: ``fp32`` or ``bf16`` (automatic mixed precision, :data:`PRECISIONS`).
+        dist_timeout: under torchrun, seconds a collective operation waits for the
+            other processes before the run stops with an error.
+
+    Under torchrun (``RANK``, ``WORLD_SIZE``, ``LOCAL_RANK`` set) the processes train one
+    model together (see the module's docstring); ``batch_size`` is the global batch.
 
     Returns:
-        :class:`TrainResult`.
+        :class:`TrainResult` (in every process; only process 0's ``best_*`` are measured).
     """
     cfg = get_config(config)
     if val_benchmark is not None and val_benchmark != cfg.val_benchmark:
@@ -294,10 +340,15 @@ def train(
         problems.append(f"val_every must be a positive integer, got {val_every}")
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
         problems.append(f"seed must be a non-negative integer, got {seed!r}")
+    if precision not in PRECISIONS:
+        problems.append(f"unknown precision {precision!r}; expected one of {', '.join(PRECISIONS)}")
+    _, world, _ = launch_ranks()
+    if batch_size < world:
+        problems.append(f"the batch of {batch_size} cannot be split among {world} processes")
     if problems:
         raise UsageError("invalid training options", problems)
     every = val_every if val_every is not None else max(steps // 100, 1)
-    dev = resolve_device(device)
+    _resolve_device(device)  # a missing GPU is a usage error before the processes meet
     out = Path(out)
     state_path = out / STATE_FILE
     weights_path = out / f"dbox_{cfg.name}.pt"
@@ -321,6 +372,43 @@ def train(
     if not val_names:
         raise UsageError("no validation sets")
 
+    owned = not torch.distributed.is_initialized()
+    ctx = setup(device, dist_timeout)
+    try:
+        return _run(
+            ctx, cfg, steps, out, seed, every, resume, schedule, min_lr_ratio, lr, init, val_sets,
+            batch_size, command, progress, progress_every, on_step, precision, state_path, weights_path,
+        )  # fmt: skip
+    finally:
+        if owned:
+            cleanup(ctx)
+
+
+def _run(
+    ctx: DistContext,
+    cfg: TrainConfig,
+    steps: int,
+    out: Path,
+    seed: int,
+    every: int,
+    resume: bool,
+    schedule: str,
+    min_lr_ratio: float,
+    lr: float,
+    init: str | Path | None,
+    val_sets: Mapping[str, Examples],
+    batch_size: int,
+    command: str | None,
+    progress: TextIO | None,
+    progress_every: int,
+    on_step: Callable[[int, float], None] | None,
+    precision: str,
+    state_path: Path,
+    weights_path: Path,
+) -> TrainResult:
+    """The training loop of :func:`train`, in each process, its options checked."""
+    dev = ctx.device
+    val_names = list(val_sets)
     settings = {
         "config": cfg.name,
         "steps": steps,
@@ -334,6 +422,9 @@ def train(
         "val_sets": val_names,
         "val_benchmark": cfg.val_benchmark,
     }
+    if precision != "fp32":  # absent from the settings of runs before precision was one
+        settings["precision"] = precision
+    launch = _launch_record(ctx, batch_size)
     model = DBox(generator=torch.Generator().manual_seed(seed)).to(dev)
     if init is not None:
         from odmd_bench_baselines.dbox import load_model
@@ -353,7 +444,7 @@ def train(
     if resume:
         state = _load_state(state_path)
         # Runs saved before val_benchmark was a setting used the config's own.
-        state["settings"].setdefault("val_benchmark", get_config(config).val_benchmark)
+        state["settings"].setdefault("val_benchmark", get_config(cfg.name).val_benchmark)
         if state["settings"] != settings:
             diff = [
                 f"{k}: run has {state['settings'].get(k)!r}, asked for {settings[k]!r}"
@@ -377,38 +468,71 @@ def train(
             ) from None
         if not 0 <= step <= steps or not isinstance(best, dict) or not isinstance(best.get("scores"), dict):
             raise DataError(f"{state_path} is not a usable DBox training state (step {step} of {steps})")
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as e:
-        raise StorageError(
-            f"cannot create the run folder {out}: {e.strerror or type(e).__name__}; give --out a folder "
-            "you can write"
-        ) from None
+    if ctx.is_main:
+        try:
+            out.mkdir(parents=True, exist_ok=True)
+        except OSError as e:
+            raise StorageError(
+                f"cannot create the run folder {out}: {e.strerror or type(e).__name__}; give --out a folder "
+                "you can write"
+            ) from None
 
-    bar = _Progress(progress, steps, progress_every)
+    net: torch.nn.Module = _Step(model, precision)
+    if ctx.distributed:
+        from torch.nn.parallel import DistributedDataParallel
+
+        try:  # DDP checks that every process holds the same parameters, and starts from process 0's
+            net = DistributedDataParallel(net, device_ids=[dev] if dev.type == "cuda" else None)
+        except RuntimeError as e:
+            raise collective_failure(ctx, step, e) from None
+    rows = shard(batch_size, ctx.rank, ctx.world_size)
+    # Each process's loss is its rows' share of the global batch's mean (sum / B, times N
+    # because DDP averages the N gradients): exact for any split of the batch. One process
+    # keeps the plain mean, the arithmetic of runs before DDP.
+    share = ctx.world_size / batch_size
+    bar = _Progress(progress if ctx.is_main else None, steps, progress_every)
     bar.start_step = step
     val_text = "val All -" if best["step"] < 0 else _val_text(best)
     losses: list[float] = []
-    cpu0, wall0 = time.process_time() - best["cpu_s"], time.perf_counter() - best["wall_s"]
+    pending: list[torch.Tensor] = []  # losses not yet read (on a GPU: read at each report)
+    cpu_base, wall0 = best["cpu_s"], time.perf_counter() - best["wall_s"]
+    cpu0 = time.process_time()
     model.train()
     while step < steps:
         rate = learning_rate(step, steps, schedule, min_lr_ratio, lr)
         for group in optimizer.param_groups:
             group["lr"] = rate
         batch = odmd_bench.generate(batch_size, cfg.preset, cfg.perturbation, rng)
-        x, y, _ = batch_tensors(batch, cfg.formulation, dev)
-        loss = (model(x) - y).abs().mean()
-        optimizer.zero_grad(set_to_none=True)
-        loss.backward()
+        x, y, _ = batch_tensors(batch, cfg.formulation, dev, rows)
+        try:
+            err = (net(x) - y).abs()
+            loss = err.sum() * share if ctx.distributed else err.mean()
+            optimizer.zero_grad(set_to_none=True)
+            loss.backward()  # DDP averages the gradients over the processes here
+        except RuntimeError as e:
+            if ctx.distributed:
+                raise collective_failure(ctx, step + 1, e) from None
+            raise
         optimizer.step()
         step += 1
-        value = float(loss.item())
-        losses.append(value)
-        if on_step is not None:
-            on_step(step, value)
-        if step % every == 0 or step == steps:
+        pending.append(loss.detach())
+        check = step % every == 0 or step == steps
+        if dev.type == "cpu" or check or step % progress_every == 0:
+            for i, v in enumerate(_read_losses(ctx, pending, step)):
+                losses.append(v)
+                if on_step is not None:
+                    on_step(step - len(pending) + 1 + i, v)
+            pending.clear()
+        value = losses[-1] if losses else math.nan
+        if check:
+            try:  # the CPU time of every process
+                cpu_s = cpu_base + all_sum(ctx, [time.process_time() - cpu0])[0]
+            except RuntimeError as e:
+                raise collective_failure(ctx, step, e) from None
+            if not ctx.is_main:
+                continue
             scores = validation_scores(model, val_sets, cfg.formulation, dev)
-            best["cpu_s"] = time.process_time() - cpu0
+            best["cpu_s"] = cpu_s
             best["wall_s"] = time.perf_counter() - wall0
             if scores["all"] < best["scores"]["all"]:
                 best.update(step=step, scores=scores)
@@ -420,14 +544,14 @@ def train(
                     _write_weights(model, per_set_path(weights_path, name))
             val_text = f"val All {scores['all']:.3f} " + _val_text(best)
             _save_state(state_path, model, optimizer, rng, step, best, settings)
-            _write_record(weights_path, cfg, settings, best, step, command)
+            _write_record(weights_path, cfg, settings, best, step, command, launch=launch)
             for name, kept in best["per_set"].items():
                 _write_record(
-                    per_set_path(weights_path, name), cfg, settings, best, step, command, (name, kept)
+                    per_set_path(weights_path, name), cfg, settings, best, step, command, (name, kept), launch
                 )
             _append_log(out / "log.jsonl", {"step": step, "lr": rate, "loss": value, **scores})
             bar.update(step, value, rate, val_text, force=True)
-        else:
+        elif not pending:
             bar.update(step, value, rate, val_text)
     return TrainResult(
         out=out,
@@ -437,6 +561,39 @@ def train(
         losses=losses,
         steps_done=step,
     )
+
+
+def _read_losses(ctx: DistContext, pending: list[torch.Tensor], step: int) -> list[float]:
+    """The global batch's losses of the ``pending`` steps (one copy from the device)."""
+    values = torch.stack(pending)
+    if ctx.distributed:
+        try:  # each process holds its rows' share; the global mean is their mean
+            torch.distributed.all_reduce(values)
+        except RuntimeError as e:
+            raise collective_failure(ctx, step, e) from None
+        values = values / ctx.world_size
+    return [float(v) for v in values.tolist()]
+
+
+def _launch_record(ctx: DistContext, batch_size: int) -> dict[str, Any]:
+    """How the run was launched, for its record: processes, batch per process, backend, devices."""
+    device = str(ctx.device)
+    if ctx.device.type == "cuda":
+        device += f" ({torch.cuda.get_device_name(ctx.device)})"
+    devices = [device]
+    if ctx.distributed:
+        gathered: list[Any] = [None] * ctx.world_size
+        torch.distributed.all_gather_object(gathered, device)
+        devices = [str(d) for d in gathered]
+    per = sorted(
+        {len(range(batch_size)[shard(batch_size, r, ctx.world_size)]) for r in range(ctx.world_size)}
+    )
+    return {
+        "world_size": ctx.world_size,
+        "batch_per_process": per[0] if len(per) == 1 else per,
+        "backend": ctx.backend,
+        "devices": devices,
+    }
 
 
 def _val_text(best: Mapping[str, Any]) -> str:
@@ -464,8 +621,12 @@ def _write_record(
     step: int,
     command: str | None,
     per_set: tuple[str, Mapping[str, Any]] | None = None,
+    launch: Mapping[str, Any] | None = None,
 ) -> None:
-    """The JSON record beside ``weights``; ``per_set``: (set, its best) for a per-set checkpoint."""
+    """The JSON record beside ``weights``; ``per_set``: (set, its best) for a per-set checkpoint.
+
+    ``launch``: processes, batch per process, backend and devices (:func:`_launch_record`).
+    """
     chosen = best if per_set is None else per_set[1]
     selection: dict[str, Any] = (
         {"kind": "overall", "on": "all"}
@@ -490,6 +651,8 @@ def _write_record(
         "torch_version": torch.__version__,
         "torch_threads": torch.get_num_threads(),
         "cpu_kernels": "onednn" if use_onednn(True) else "plain",
+        "precision": settings.get("precision", "fp32"),
+        **dict(launch or {}),
         "weights_sha256": file_sha256(weights) if weights.exists() else None,
     }
     with atomic_write(weights.with_suffix(".json"), "w") as fh:
