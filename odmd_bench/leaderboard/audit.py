@@ -28,7 +28,6 @@ Everything is seeded by the audit's seed: the same seed gives the same JSON.
 from __future__ import annotations
 
 import datetime as _dt
-import json
 import math
 import os
 import shlex
@@ -41,7 +40,7 @@ import numpy as np
 
 from odmd_bench.data.examples import Examples
 from odmd_bench.errors import OdmdError, UsageError, ValidationError
-from odmd_bench.leaderboard.audit_files import read_audits
+from odmd_bench.leaderboard.audit_files import audit_json, read_audits
 from odmd_bench.leaderboard.audit_files import rounded as _r
 from odmd_bench.leaderboard.entry import Entry
 from odmd_bench.leaderboard.specs import SET_TITLES
@@ -671,11 +670,6 @@ def _test_dict(
 def flagged(result: Mapping[str, Any]) -> list[str]:
     """The method ids an audit flags."""
     return [e["method"] for e in result["entries"] if e.get("flagged")]
-
-
-def audit_json(result: Mapping[str, Any]) -> str:
-    """The audit's JSON text, as ``--format json`` prints it and ``--record`` writes it."""
-    return json.dumps(result, indent=2, ensure_ascii=False) + "\n"
 
 
 def rerun_audits(

@@ -59,10 +59,14 @@ def audit_path(root: str | os.PathLike[str], seed: int) -> Path:
     return Path(root) / AUDITS / f"{seed}.json"
 
 
+def audit_json(result: Mapping[str, Any]) -> str:
+    """The audit's JSON text, as ``--format json`` prints it and ``--record`` writes it."""
+    return json.dumps(result, indent=2, ensure_ascii=False) + "\n"
+
+
 def record(root: str | os.PathLike[str], result: Mapping[str, Any]) -> Path:
     """Write ``result`` to :func:`audit_path` (atomically) and return the path."""
     from odmd_bench.data.atomic import ensure_folder
-    from odmd_bench.leaderboard.audit import audit_json
 
     path = audit_path(root, int(result["seed"]))
     ensure_folder(path.parent)
@@ -196,7 +200,7 @@ def _entry_problems(e: object, sets: list[str]) -> list[str]:
 
 def rounded(x: float) -> float:
     """``x`` rounded as ``leaderboard.json`` keeps floats (no ``-0.0``)."""
-    from odmd_bench.leaderboard.render import JSON_DECIMALS
+    from odmd_bench.leaderboard.specs import JSON_DECIMALS
 
     v = round(float(x), JSON_DECIMALS)
     return 0.0 if v == 0 else v

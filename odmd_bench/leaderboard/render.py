@@ -19,11 +19,7 @@ from odmd_bench.leaderboard.board import Board, Row, collect
 from odmd_bench.leaderboard.files import ENTRIES
 from odmd_bench.leaderboard.ranking import RANK_CONFIDENCE, RANK_SEED, resamples, rule
 from odmd_bench.leaderboard.reported import ReportedResult, read_reported
-from odmd_bench.leaderboard.specs import SET_TITLES
-
-#: Decimals kept for floats in leaderboard.json, so that the file does not depend on the
-#: last bit of a sum (which may differ between numpy builds).
-JSON_DECIMALS = 6
+from odmd_bench.leaderboard.specs import JSON_DECIMALS, SET_TITLES
 
 
 @dataclass(frozen=True)

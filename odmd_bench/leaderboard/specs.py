@@ -64,3 +64,8 @@ def board_spec(benchmark: str, split: str) -> BoardSpec:
     raise UsageError(
         f"there is no board for {benchmark} {split}; the boards are {', '.join(b.key for b in BOARDS)}"
     )
+
+
+#: Decimals kept for floats in leaderboard.json, so that the file does not depend on the
+#: last bit of a sum (which may differ between numpy builds).
+JSON_DECIMALS = 6

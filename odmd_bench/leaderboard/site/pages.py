@@ -20,7 +20,7 @@ from html import escape
 from string import Template
 from typing import Any
 
-from odmd_bench import __version__
+from odmd_bench._version import __version__
 from odmd_bench.data.registry import BENCHMARKS
 from odmd_bench.leaderboard.files import JSON_FILE, board_digest
 from odmd_bench.leaderboard.ranking import RANK_SEED
