@@ -70,7 +70,9 @@ def options(command: str) -> tuple[str, dict[str, str]]:
 
 def trained_parameters(name: str, given: dict[str, str], sets: dict[str, Any]) -> int:
     """The trained weights the command runs: a DBox network's parameters per checkpoint used."""
-    if name != "dbox":
+    if name == "dbox-guard":  # the shipped p-z per-set checkpoints, with an inference step
+        given = {"config": "p-z", "selection": "per-set"}
+    elif name != "dbox":
         return 0
     from odmd_bench_baselines import dbox
     from odmd_bench_baselines.dbox.model import DBox
