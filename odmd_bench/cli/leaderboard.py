@@ -56,7 +56,7 @@ def build_command(root: Path | None, data_dir: Path | None, original: Path | Non
     from odmd_bench.leaderboard import build, write
 
     folder = _root(root)
-    built = build(folder, data_dir, original)
+    built = build(folder, data_dir, original, progress=lambda line: click.echo(line, err=True))
     for line in write(folder, built, plot=not no_plot):
         click.echo(line)
     n = sum(len(b.rows) for b in built.boards)
@@ -68,21 +68,39 @@ def build_command(root: Path | None, data_dir: Path | None, original: Path | Non
 @_data_option
 @_original_option
 def check_command(root: Path | None, data_dir: Path | None, original: Path | None) -> None:
-    """Fail (exit 2) unless every entry is valid and the committed table and JSON are what build writes now.
+    """Re-score every entry and compare the committed table and JSON with what build writes now.
 
-    Every difference is named (file, row, field, old and new).
+    A line per board on stderr while it runs; every difference is named (file, row,
+    field, old and new).
+
+    \b
+    Exit status:
+      0  the committed files are what build writes, every entry re-scored
+      1  the gate failed: a committed file differs from a fresh build
+      2  bad input: an entry or reported.yaml is invalid (every problem named)
     """
-    from odmd_bench.leaderboard import check
+    from odmd_bench.leaderboard import check_report
 
     folder = _root(root)
-    problems = check(folder, data_dir, original)
-    if problems:
+    report = check_report(folder, data_dir, original, progress=lambda line: click.echo(line, err=True))
+    if report.invalid:
+        n = len(report.invalid)
         raise ValidationError(
-            f"leaderboard check failed ({folder}): {len(problems)} "
-            f"{'problem' if len(problems) == 1 else 'problems'}; fix the entries, or run "
-            "`odmd-bench leaderboard build` and commit LEADERBOARD.md, leaderboard.json and README.md",
-            problems,
+            f"leaderboard check failed ({folder}): {n} {'problem' if n == 1 else 'problems'} with the "
+            "entries; fix them, then run `odmd-bench leaderboard build`",
+            report.invalid,
         )
+    if report.differences:
+        n = len(report.differences)
+        click.echo(
+            f"fail: leaderboard check ({folder}): {n} {'difference' if n == 1 else 'differences'} from what "
+            "build writes now; run `odmd-bench leaderboard build` and commit LEADERBOARD.md, "
+            "leaderboard.json and README.md",
+            err=True,
+        )
+        for line in report.differences:
+            click.echo(f"  - {line}", err=True)
+        click.get_current_context().exit(1)
     click.echo(f"leaderboard check passed: {folder} is what build writes, every entry re-scored")
 
 

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import json
 import os
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 from odmd_bench.data.registry import BENCHMARKS
@@ -42,15 +42,18 @@ def build(
     original: str | os.PathLike[str] | None = None,
     *,
     n_resamples: int | None = None,
+    progress: Callable[[str], None] | None = None,
 ) -> Built:
     """Everything ``leaderboard build`` writes, computed (nothing is written).
+
+    ``progress`` is called with a line per board (see :func:`~odmd_bench.leaderboard.board.collect`).
 
     Raises:
         ValidationError: Naming every problem with the entries (metadata, data,
             predictions) and with ``reported.yaml``.
     """
     n = resamples(n_resamples)
-    boards, problems = collect(root, data_dir, original, n_resamples=n)
+    boards, problems = collect(root, data_dir, original, n_resamples=n, progress=progress)
     reported: list[ReportedResult] = []
     try:
         reported = read_reported(root)
