@@ -41,6 +41,8 @@ TIE = "not distinguishable"
 
 #: Resamples are drawn this many at a time, to bound memory (chunk x N indices).
 _CHUNK = 250
+#: :class:`Resampled` multiplies the draws of this many bytes at once (counts and signs).
+_BLOCK_BYTES = 64 * 2**20
 #: The most resamples a comparison draws (p-values to 1e-6; two float64 arrays of 8 MB).
 MAX_RESAMPLES = 1_000_000
 
@@ -317,14 +319,24 @@ class Resampled:
         m, n = e.shape
         boot = np.empty((m, self.n_resamples))
         flip = np.empty((m, self.n_resamples))
-        start = 0
-        for idx, signs in _chunks(n, self.n_resamples, rng):
+        # The draws of several chunks go into one product: fewer, larger calls into BLAS
+        # (whose idle threads spin between calls, which costs much on a busy machine).
+        rows = min(self.n_resamples, max(1, _BLOCK_BYTES // (16 * n * _CHUNK)) * _CHUNK)
+        counts = np.empty((rows, n))  # how often each example is drawn in each resample
+        signs = np.empty((rows, n))
+        start = drawn = 0
+        for idx, flips in _chunks(n, self.n_resamples, rng):
             k = idx.shape[0]
-            # How often each example is drawn in each resample: (k, N).
-            counts = np.bincount((idx + n * np.arange(k)[:, None]).ravel(), minlength=k * n).reshape(k, n)
-            boot[:, start : start + k] = e @ counts.T.astype(np.float64) / n
-            flip[:, start : start + k] = e @ signs.T / n
-            start += k
+            counts[drawn : drawn + k] = np.bincount(
+                (idx + n * np.arange(k)[:, None]).ravel(), minlength=k * n
+            ).reshape(k, n)
+            signs[drawn : drawn + k] = flips
+            drawn += k
+            if drawn == rows or start + drawn == self.n_resamples:
+                block = slice(start, start + drawn)
+                boot[:, block] = e @ counts[:drawn].T / n
+                flip[:, block] = e @ signs[:drawn].T / n
+                start, drawn = start + drawn, 0
         return boot, flip
 
     def compare(self, a: str, b: str) -> Comparison:
