@@ -382,13 +382,18 @@ def test_compare_fail_if_worse(data: Path, tmp_path: Path) -> None:
     base = ["--benchmark", "odmd-paper", "--fail-if-worse"]
     code, out, err = run("compare", str(good), str(bad), *base)
     assert code == 1 and "All" in out
+    # The gate line says A - B, as the table above it does: the same number, the same sign.
+    (all_row,) = [line.split() for line in out.splitlines() if line.startswith("All ")]
     assert err.splitlines()[0].startswith(
-        "fail: the candidate is significantly worse on All: candidate - baseline = +"
+        f"fail: the candidate is significantly worse on All: A - B (baseline - candidate) = {all_row[4]} points"
     )
+    assert all_row[4].startswith("-")
     code, out, err = run("compare", str(bad), str(good), *base)
     assert code == 0 and err.startswith("ok: not significantly worse on All")
-    code, _, err = run("compare", str(good), str(good), *base, "--sets", "normal,robot")
+    code, out, err = run("compare", str(good), str(good), *base, "--sets", "normal,robot")
     assert code == 0
+    # A file compared with itself: every difference and bound is +0.00, never -0.00.
+    assert "-0.00" not in out + err and "[+0.00, +0.00]" in out and "= +0.00 points" in err
     assert [ln.split(":")[0] + ":" + ln.split(":")[1] for ln in err.splitlines() if ln.startswith("ok")] == [
         "ok: not significantly worse on All",
         "ok: not significantly worse on normal",
