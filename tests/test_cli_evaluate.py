@@ -530,3 +530,21 @@ def test_the_readmes_evaluate_output_is_what_the_commands_print(
     r = runner.invoke(cli, ["evaluate", "box-ls.csv", "--data-dir", str(v1_data_dir)])
     assert r.exit_code == 0, r.output
     assert r.stdout + r.stderr == shown
+
+
+def test_the_expected_input_format_is_stated_in_help_and_docstring() -> None:
+    """OGB-style: the file's and the arrays' format, with every benchmark's sets, where a user looks."""
+    from odmd_bench.data.registry import BENCHMARKS
+
+    result = CliRunner().invoke(cli, ["evaluate", "--help"])
+    assert result.exit_code == 0
+    help_text = " ".join(result.output.split())
+    doc = " ".join((odmd_bench.score.__doc__ or "").split())
+    assert (
+        "Expected input format (what `odmd-bench baseline NAME -o PREDS` writes): split,set,index,depth"
+        in help_text
+    )
+    assert "Expected input format" in doc and "in index order" in doc
+    for name, bench in BENCHMARKS.items():
+        listed = f"{', '.join(bench.sets[:-1])}, {bench.sets[-1]}"
+        assert listed in help_text and listed in doc, (name, listed)
