@@ -37,8 +37,11 @@ def modules() -> list[str]:
         every += [i.name for i in pkgutil.walk_packages(package.__path__, prefix=top + ".")]
     every = [m for m in every if not m.endswith("__main__")]
     specs = list(PACKAGES)
-    while missing := [m for m in every if m not in walk_specs(specs)]:
-        specs.append(missing[0])
+    reached = set(walk_specs(specs))
+    for m in every:
+        if m not in reached:
+            specs.append(m)
+            reached.update(walk_specs([m]))
     return specs
 
 
