@@ -17,7 +17,8 @@ The verdict is "A better" or "B better" only when the interval excludes 0 *and*
 ``p < 1 - confidence``; otherwise "not distinguishable". Every set draws from its own
 random stream, made from ``seed`` and the set's name, so a set's result does not depend
 on which other sets are compared, and the same call gives the same numbers everywhere.
-The leaderboard forms its rank groups with :func:`compare_errors`.
+The leaderboard forms its rank groups with :class:`Resampled`: the comparison of
+:func:`compare_errors`, its draws made once for every pair of methods.
 """
 
 from __future__ import annotations
