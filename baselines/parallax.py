@@ -262,7 +262,8 @@ def combine_halves(
         if combine == "lsq":
             depth = (den_a * num_a + den_b * num_b) / (den_a * den_a + den_b * den_b)
             bad = ~np.isfinite(depth) & ~none
-            return np.where(none | bad, fallback_depth, depth), {"non_finite": int(bad.sum())}
+            # + 0.0: a zero numerator over a negative denominator is -0.0, written "-0.0"
+            return np.where(none | bad, fallback_depth, depth) + 0.0, {"non_finite": int(bad.sum())}
         z_a, z_b = num_a / den_a, num_b / den_b
         depth = (z_a + z_b) / 2
     bad_a = ~np.isfinite(z_a)
@@ -272,7 +273,7 @@ def combine_halves(
         f"non_finite_{names[0]}": int((bad_a & ~none).sum()),
         f"non_finite_{names[1]}": int((bad_b & ~bad_a & ~none).sum()),
     }
-    return np.where(none | bad_a, fallback_depth, depth), counts
+    return np.where(none | bad_a, fallback_depth, depth) + 0.0, counts  # + 0.0: no -0.0 (above)
 
 
 def predict(

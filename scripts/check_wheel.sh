@@ -7,9 +7,11 @@
 #   3. install it into a fresh venv, and from a folder outside the repository, with a data
 #      folder of its own, run generate, baseline box-ls and dbox, evaluate and import;
 #   4. install it into a second venv where torch and matplotlib cannot be imported: generate,
-#      box-ls, evaluate, compare, import and the leaderboard check run, and `baseline dbox`,
-#      `train-dbox` and `plot` exit 2 naming the extra to install;
-#   5. run the whole test suite on the first venv's installed wheel (not the checkout).
+#      box-ls, evaluate, compare, import and the leaderboard check (CI's gate: every entry
+#      re-scored from its committed predictions) run, and `baseline dbox`, `train-dbox` and
+#      `plot` exit 2 naming the extra to install;
+#   5. run the whole test suite, once, on the first venv's installed wheel (not the checkout): the
+#      one pass of the suite that scripts/check.sh makes (its progress shown as it runs).
 # The venvs reuse the dependencies already installed in the running Python's environment
 # (a .pth file pointing at its site-packages) and install the wheel with --no-deps: nothing
 # is downloaded. The original release ($ODMD_ORIGINAL, default ../shared/odmd-original)
@@ -36,6 +38,11 @@ fail() {
     echo "check_wheel: FAILED: $*" >&2
     exit 1
 }
+lap=$SECONDS
+took() {  # took WHAT: how long since the last call
+    echo "  ($1: $((SECONDS - lap)) s)"
+    lap=$SECONDS
+}
 
 # --- 1. build ----------------------------------------------------------------------------
 mkdir "$work/src"
@@ -51,6 +58,7 @@ fi
 "$py" -m pip wheel -q --no-deps "${isolation[@]}" "$work/src" -w "$work/dist" >"$work/build.log" 2>&1 \
     || { cat "$work/build.log" >&2; fail "the wheel does not build"; }
 wheel=$(ls "$work"/dist/*.whl)
+took "the wheel built"
 
 # --- 2. what it holds ----------------------------------------------------------------------
 "$py" - "$wheel" "$work/src" <<'EOF' || fail "the wheel's contents (above)"
@@ -113,6 +121,7 @@ for p in problems:
     print(f"  PROBLEM: {p}", file=sys.stderr)
 sys.exit(1 if problems else 0)
 EOF
+took "its contents checked"
 
 # --- 3. installed apart, run from elsewhere --------------------------------------------------
 deps=$("$py" -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])')
@@ -131,6 +140,7 @@ make_venv() {  # make_venv DIR [BLOCKED_MODULE...]: a venv with the wheel, deps 
 }
 make_venv "$work/full"
 make_venv "$work/base" torch matplotlib
+took "two venvs made"
 mkdir "$work/run"
 cd "$work/run"  # outside the repository: only the installed wheel can be imported
 export ODMD_BENCH_DATA="$work/data"
@@ -161,6 +171,7 @@ if [ -n "$original" ]; then
 else
     echo "  SKIPPED import: the original ODMD release is not at ${ODMD_ORIGINAL:-../shared/odmd-original} (set ODMD_ORIGINAL); CI runs it"
 fi
+took "the full venv's commands"
 
 echo "installed wheel, base (torch and matplotlib cannot be imported):"
 "$work/base/bin/python" -c 'import sys
@@ -178,7 +189,9 @@ run base evaluate box-base.csv
 run base compare box.csv dbox.csv
 if [ -n "$original" ]; then
     run base import "$original" --data-dir "$work/data-base"
+    # CI's leaderboard gate: every entry re-scored from its committed predictions (a line per board).
     run base leaderboard check --root "$repo/leaderboard" --original "$original"
+    grep -v "up to date" "$work/out" | sed 's/^/    /'
 else
     echo "  SKIPPED leaderboard check: no original release (see above)"
 fi
@@ -198,6 +211,7 @@ needs_extra dbox "baseline dbox" baseline dbox -o dbox-base.csv
 [ ! -e dbox-base.csv ] || fail "[base] baseline dbox wrote a file"
 needs_extra dbox "train-dbox" train-dbox --steps 1 --out train-base
 needs_extra plot "plot" plot box.csv --set normal -o fig.png
+took "the base venv's commands"
 
 # --- 4. the test suite on the installed wheel ------------------------------------------------
 # From the repository (the tests read its leaderboard, docs and ../shared), with -P so that
@@ -209,7 +223,11 @@ case "$where" in
     "$work/full/"*" $work/full/"*) ;;
     *) fail "from the repository, the venv imports odmd-bench from elsewhere: $where" ;;
 esac
-"$work/full/bin/python" -P -m pytest -q -p no:cacheprovider >"$work/pytest.log" 2>&1 \
-    || { tail -40 "$work/pytest.log" >&2; fail "the test suite on the installed wheel"; }
-tail -1 "$work/pytest.log" | sed 's/^/  /'
+# PYTHONSAFEPATH=1 is -P for the Python processes the tests start too (`python -m odmd_bench`,
+# `python -c ...` from the checkout): they import the installed wheel as well. The suite's own
+# progress (a line per test file) and its slowest tests are shown; pytest's cache stays off
+# (the checkout may be read-only).
+PYTHONSAFEPATH=1 "$work/full/bin/python" -P -m pytest -p no:cacheprovider --durations=10 \
+    || fail "the test suite on the installed wheel"
+took "the test suite"
 echo "check_wheel: OK ($((SECONDS - start)) s)"

@@ -19,6 +19,7 @@ from odmd_bench_baselines import box_ls, expansion, parallax
 
 import odmd_bench
 from odmd_bench.cli.main import cli
+from odmd_bench.evaluation.predictions import format_predictions
 
 METHODS: tuple[ModuleType, ...] = (box_ls, parallax, expansion)
 INTRINSICS = {"fx": 205.5, "fy": 205.5, "cx": 320.5, "cy": 240.5, "image_width": 640, "image_height": 480}
@@ -248,6 +249,11 @@ def test_parallax_counts_the_examples_without_lateral_motion(combine: str) -> No
     depth, counts = parallax.predict_report(ex, combine=combine)  # type: ignore[arg-type]
     assert set(depth.tolist()) <= {0.0, 1.0} and (depth == 0).sum() >= 4
     assert counts["no_lateral_motion"] == 6
+    # 0 m, never -0 m (a zero numerator over a negative denominator), which a CSV would show
+    # as "-0.0"; 40 examples, of which about a quarter have that sign.
+    many = parallax.predict(odmd_bench.generate(40, "odms", perturbation="normal", rng=3), combine=combine)  # type: ignore[arg-type]
+    assert (many == 0).sum() >= 30 and not np.signbit(many).any()
+    assert ",-0.0" not in format_predictions("test", {"normal": many})
     # One example given lateral motion is estimated, and no longer counted.
     camera = ex.camera.copy()
     camera[0, 0, 0] = 0.05

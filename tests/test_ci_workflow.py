@@ -9,6 +9,7 @@ temporary folder, with the installed ``odmd-bench`` on the PATH and the job's
 from __future__ import annotations
 
 import csv
+import json
 import os
 import shutil
 import subprocess
@@ -111,3 +112,32 @@ def test_the_job_fails_when_the_method_gets_worse(repo: tuple[Path, dict[str, st
     compare = _run(steps["Compare with the committed baseline"], work, env)
     assert compare.returncode == 1, compare.stdout + compare.stderr
     assert "significantly worse" in compare.stdout + compare.stderr
+
+
+def test_what_the_comment_says_of_sets_is_what_compare_does(repo: tuple[Path, dict[str, str]]) -> None:
+    """With --sets, All covers those sets alone (not all four) and each set is a gate too."""
+    comment = WORKFLOW.read_text(encoding="utf-8").split("\nname:")[0]
+    assert (
+        "With --sets\n# normal,robot, compare scores those two sets only: All is then their mean alone"
+        in comment
+    )
+    work, env = repo
+    steps = _steps()
+    for name in ("Generate the benchmark", "Run the method"):
+        assert _run(steps[name], work, env).returncode == 0
+    command = steps["Compare with the committed baseline"].replace("ci/baseline-preds.csv", "preds.csv")
+    done = _run(command + " --sets normal,robot --format json", work, env)
+    assert done.returncode == 0, done.stderr
+    result = json.loads(done.stdout)
+    assert list(result["sets"]) == ["normal", "robot"]
+    assert result["all"]["n"] == result["sets"]["normal"]["n"] + result["sets"]["robot"]["n"]
+    gates = [
+        line.split(":")[0] + ":" + line.split(":")[1]
+        for line in done.stderr.splitlines()
+        if line.startswith("ok")
+    ]
+    assert gates == [
+        "ok: not significantly worse on All",
+        "ok: not significantly worse on normal",
+        "ok: not significantly worse on robot",
+    ]

@@ -382,13 +382,18 @@ def test_compare_fail_if_worse(data: Path, tmp_path: Path) -> None:
     base = ["--benchmark", "odmd-paper", "--fail-if-worse"]
     code, out, err = run("compare", str(good), str(bad), *base)
     assert code == 1 and "All" in out
+    # The gate line says A - B, as the table above it does: the same number, the same sign.
+    (all_row,) = [line.split() for line in out.splitlines() if line.startswith("All ")]
     assert err.splitlines()[0].startswith(
-        "fail: the candidate is significantly worse on All: candidate - baseline = +"
+        f"fail: the candidate is significantly worse on All: A - B (baseline - candidate) = {all_row[4]} points"
     )
+    assert all_row[4].startswith("-")
     code, out, err = run("compare", str(bad), str(good), *base)
     assert code == 0 and err.startswith("ok: not significantly worse on All")
-    code, _, err = run("compare", str(good), str(good), *base, "--sets", "normal,robot")
+    code, out, err = run("compare", str(good), str(good), *base, "--sets", "normal,robot")
     assert code == 0
+    # A file compared with itself: every difference and bound is +0.00, never -0.00.
+    assert "-0.00" not in out + err and "[+0.00, +0.00]" in out and "= +0.00 points" in err
     assert [ln.split(":")[0] + ":" + ln.split(":")[1] for ln in err.splitlines() if ln.startswith("ok")] == [
         "ok: not significantly worse on All",
         "ok: not significantly worse on normal",
@@ -525,3 +530,21 @@ def test_the_readmes_evaluate_output_is_what_the_commands_print(
     r = runner.invoke(cli, ["evaluate", "box-ls.csv", "--data-dir", str(v1_data_dir)])
     assert r.exit_code == 0, r.output
     assert r.stdout + r.stderr == shown
+
+
+def test_the_expected_input_format_is_stated_in_help_and_docstring() -> None:
+    """OGB-style: the file's and the arrays' format, with every benchmark's sets, where a user looks."""
+    from odmd_bench.data.registry import BENCHMARKS
+
+    result = CliRunner().invoke(cli, ["evaluate", "--help"])
+    assert result.exit_code == 0
+    help_text = " ".join(result.output.split())
+    doc = " ".join((odmd_bench.score.__doc__ or "").split())
+    assert (
+        "Expected input format (what `odmd-bench baseline NAME -o PREDS` writes): split,set,index,depth"
+        in help_text
+    )
+    assert "Expected input format" in doc and "in index order" in doc
+    for name, bench in BENCHMARKS.items():
+        listed = f"{', '.join(bench.sets[:-1])}, {bench.sets[-1]}"
+        assert listed in help_text and listed in doc, (name, listed)

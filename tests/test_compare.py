@@ -15,6 +15,7 @@ from odmd_bench.evaluation.compare import (
     A_BETTER,
     B_BETTER,
     TIE,
+    Resampled,
     compare_errors,
     compare_files,
     compare_results,
@@ -124,6 +125,54 @@ def test_bad_arguments(a: dict, b: dict, kw: dict, words: str) -> None:
         compare_errors(a, b, **kw)
 
 
+@pytest.mark.parametrize("n_resamples", [2000, 601])
+def test_resampled_compares_every_pair_as_compare_errors_does(n_resamples: int) -> None:
+    """The leaderboard's shared draws: the same comparison of every pair, up to rounding."""
+    rng = np.random.default_rng(11)
+    sizes = {"normal": 300, "camera": 250, "object": 199, "robot": 120}
+    base = {s: rng.gamma(2.0, 5.0, n) for s, n in sizes.items()}
+    methods = {
+        "same": {s: v.copy() for s, v in base.items()},
+        "base": base,
+        "close": {s: v + rng.normal(0.05, 1.0, v.size) for s, v in base.items()},
+        "worse": {s: v + 1.0 + rng.normal(0.0, 1.0, v.size) for s, v in base.items()},
+        "zeros": {s: np.zeros(n) for s, n in sizes.items()},
+    }
+    shared = Resampled(methods, n_resamples=n_resamples, seed=4, confidence=0.9)
+    verdicts = set()
+    for a in methods:
+        for b in methods:
+            got = shared.compare(a, b)
+            want = compare_errors(methods[a], methods[b], n_resamples=n_resamples, seed=4, confidence=0.9)
+            assert (got.n_resamples, got.seed, got.confidence) == (n_resamples, 4, 0.9)
+            for x, y in [(got.all, want.all), *((got.sets[s], want.sets[s]) for s in sizes)]:
+                assert (x.n, x.mean_a, x.mean_b, x.difference) == (y.n, y.mean_a, y.mean_b, y.difference)
+                assert (x.verdict, x.p_value) == (y.verdict, y.p_value)
+                assert x.ci_low == pytest.approx(y.ci_low, rel=1e-12, abs=1e-12)
+                assert x.ci_high == pytest.approx(y.ci_high, rel=1e-12, abs=1e-12)
+                verdicts.add(x.verdict)
+    assert verdicts == {A_BETTER, B_BETTER, TIE}
+    same = shared.compare("base", "same").all
+    assert (same.difference, same.ci_low, same.ci_high, same.p_value) == (0.0, 0.0, 0.0, 1.0)
+
+
+@pytest.mark.parametrize(
+    ("errors_", "kw", "words"),
+    [
+        ({"a": {"normal": [1.0]}, "b": {"camera": [1.0]}}, {}, "same sets"),
+        ({"a": {}}, {}, "no sets"),
+        ({"a": {"normal": [1.0, 2.0]}, "b": {"normal": [1.0]}, "c": {"normal": [1.0]}}, {}, "same non-empty"),
+        ({"a": {"normal": [1.0]}, "b": {"normal": [np.inf]}}, {}, "finite"),
+        ({"a": {"normal": [1.0]}}, {"n_resamples": 0}, "n_resamples"),
+    ],
+)
+def test_resampled_bad_arguments(errors_: dict, kw: dict, words: str) -> None:
+    with pytest.raises(UsageError, match=words):
+        Resampled(errors_, **kw)
+    with pytest.raises(UsageError, match="unknown method 'x'; expected one of a, b"):
+        Resampled({"a": {"s": [1.0]}, "b": {"s": [2.0]}}).compare("a", "x")
+
+
 @pytest.fixture()
 def data(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
     d = tmp_path / "data"
@@ -215,5 +264,5 @@ def test_compare_pairs_checks_its_input() -> None:
         compare_pairs({"a": a, "b": {s: v[:-1] for s, v in b.items()}}, [("a", "b")])
     with pytest.raises(UsageError, match="n_resamples must be between"):
         compare_pairs({"a": a, "b": b}, [("a", "b")], n_resamples=0)
-    with pytest.raises(UsageError, match="must cover the sets"):
+    with pytest.raises(UsageError, match="must cover the same sets"):
         compare_pairs({"a": a, "b": {"normal": b["normal"]}}, [("a", "b")])

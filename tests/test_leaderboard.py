@@ -494,20 +494,52 @@ def test_plot_source_reads_only_up_to_the_image_data(tmp_path: Path) -> None:
 # ----------------------------------------------------------------------------- CLI
 
 
-def test_cli_check_exits_2_naming_the_difference(
+def test_cli_check_exits_1_on_a_difference_and_2_on_a_broken_entry_with_a_line_per_board(
     board: Path, v1_data_dir: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
+    """The gate (a committed table that differs from a fresh build) exits 1, bad input 2."""
     monkeypatch.setattr(ranking, "RANK_RESAMPLES", FAST)
     runner = CliRunner()
     args = ["leaderboard", "check", "--root", str(board), "--data-dir", str(v1_data_dir)]
     # The fixture built with FAST resamples, and the CLI's default is patched to match.
     ok = runner.invoke(cli, args)
     assert ok.exit_code == 0, ok.output
+    assert ok.stdout.startswith("leaderboard check passed: ")
+    progress = [line for line in ok.stderr.splitlines() if "up to date" not in line]  # the data's log
+    assert [line.split(":")[0] for line in progress] == [spec.key for spec in lb.BOARDS]
+    assert "odmd-v1 test: 2 entries re-scored and ranked (" in ok.stderr
+    assert "odmd-paper test: no entries" in progress
     md = board / lb.MARKDOWN
     md.write_text(md.read_text().replace("| 1 | [BOX-LS]", "| 2 | [BOX-LS]"))
     bad = runner.invoke(cli, args)
-    assert bad.exit_code == 2
-    assert "row 'BOX-LS', column 'Group': committed '2', build writes '1'" in bad.output
+    assert bad.exit_code == 1, bad.output
+    assert "fail: leaderboard check (" in bad.stderr and "1 difference from what build writes" in bad.stderr
+    assert "row 'BOX-LS', column 'Group': committed '2', build writes '1'" in bad.stderr
+    assert "error:" not in bad.stderr and bad.stdout == ""
+    entry = board / lb.ENTRIES / "box-ls" / "odmd-v1-test" / "entry.yaml"
+    meta = yaml.safe_load(entry.read_text())
+    del meta["training_data"]
+    entry.write_text(yaml.safe_dump(meta, sort_keys=False))
+    broken = runner.invoke(cli, args)
+    assert broken.exit_code == 2, broken.output
+    assert broken.stderr.splitlines()[-2].startswith("error: leaderboard check failed (")
+    assert "1 problem with the entries" in broken.stderr and "missing field 'training_data'" in broken.stderr
+
+
+def test_check_report_tells_invalid_entries_from_differences(board: Path, v1_data_dir: Path) -> None:
+    assert lb.check_report(board, v1_data_dir, n_resamples=FAST) == lb.CheckReport([], [])
+    (board / lb.JSON_FILE).unlink()
+    report = lb.check_report(board, v1_data_dir, n_resamples=FAST)
+    assert report.invalid == [] and report.differences == [
+        "leaderboard.json is missing; run `odmd-bench leaderboard build`"
+    ]
+    gz = board / lb.ENTRIES / "box-ls" / "odmd-v1-test" / "predictions.csv.gz"
+    _rewrite_gz(gz, lambda t: "".join(t.splitlines(keepends=True)[:-1]))
+    lines: list[str] = []
+    report = lb.check_report(board, v1_data_dir, n_resamples=FAST, progress=lines.append)
+    assert report.differences == [] and len(report.invalid) == 1
+    assert "of set 'robot' have no row" in report.invalid[0]
+    assert lines[1].startswith("odmd-v1 test: 2 entries re-scored, 1 problem (")
 
 
 def test_cli_build_writes_the_files(board: Path, v1_data_dir: Path, monkeypatch: pytest.MonkeyPatch) -> None:
@@ -598,7 +630,7 @@ def test_cli_add_makes_an_entry_that_build_ranks(
     meta = yaml.safe_load((board / lb.ENTRIES / "exp2" / "odmd-v1-test" / "entry.yaml").read_text())
     assert meta["calibrated"] is False and meta["split"] == "test" and len(meta["sets_content_sha256"]) == 4
     stale = runner.invoke(cli, ["leaderboard", "check", *common])
-    assert stale.exit_code == 2 and "build writes '| 2 | [Exp 2](entries/exp2/odmd-v1-test/)" in stale.output
+    assert stale.exit_code == 1 and "build writes '| 2 | [Exp 2](entries/exp2/odmd-v1-test/)" in stale.output
     assert runner.invoke(cli, ["leaderboard", "build", "--no-plot", *common]).exit_code == 0
     assert runner.invoke(cli, ["leaderboard", "check", *common]).exit_code == 0
 

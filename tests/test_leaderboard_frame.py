@@ -13,8 +13,10 @@ from pathlib import Path
 
 import pytest
 import yaml
+from click.testing import CliRunner
 
 from odmd_bench import leaderboard as lb
+from odmd_bench.cli.main import cli
 from odmd_bench.errors import UsageError, ValidationError
 
 REPO = Path(__file__).resolve().parents[1]
@@ -120,6 +122,20 @@ def test_frame_without_a_json_file_says_what_to_run(tmp_path: Path) -> None:
     pytest.importorskip("pandas")
     with pytest.raises(UsageError, match="run `odmd-bench leaderboard build`"):
         lb.frame(tmp_path)
+
+
+def test_frame_outside_a_checkout_names_its_argument_not_a_cli_option(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.chdir(tmp_path)  # no leaderboard/ here or above
+    with pytest.raises(UsageError) as e:
+        lb.frame()
+    assert "--root" not in str(e.value)
+    assert str(e.value).endswith(
+        "run from the repository or give the folder: frame('path/to/odmd-bench/leaderboard')"
+    )
+    done = CliRunner().invoke(cli, ["leaderboard", "check"])  # the command line names its option
+    assert done.exit_code == 2 and "run from the repository or pass --root" in done.stderr
 
 
 def test_importing_the_leaderboard_does_not_import_pandas() -> None:

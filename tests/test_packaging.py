@@ -173,3 +173,19 @@ def test_the_manifests_are_found_from_a_source_checkout_too(monkeypatch: pytest.
     else:  # on the installed wheel, where a missing odmd_bench.splits is a broken install
         with pytest.raises(odmd_bench.DataError, match="are not installed; reinstall odmd-bench"):
             manifests.splits_dir()
+
+
+def test_a_python_the_tests_start_imports_the_same_odmd_bench() -> None:
+    """A `python -c` started from the checkout imports what the tests import.
+
+    On the installed wheel (scripts/check_wheel.sh) it must not import the checkout's
+    odmd_bench/ while the tests import the wheel's.
+    """
+    code = (
+        "import odmd_bench, odmd_bench_baselines; print(odmd_bench.__file__, odmd_bench_baselines.__file__)"
+    )
+    repo = Path(__file__).resolve().parents[1]
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=repo)
+    import odmd_bench_baselines
+
+    assert done.stdout.split() == [odmd_bench.__file__, odmd_bench_baselines.__file__]

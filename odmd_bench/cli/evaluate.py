@@ -120,6 +120,24 @@ def evaluate_command(
     other columns are ignored, rows may come in any order. A file with any problem is
     refused as a whole, with every problem named (exit status 2). Zero or negative
     depths are scored as given, with a warning.
+
+    \b
+    Expected input format (what `odmd-bench baseline NAME -o PREDS` writes):
+      split,set,index,depth
+      test,normal,0,1.3371905452053497
+      test,normal,1,0.6032816400207187
+      ...
+    \b
+      split      val or test; one split per file
+      set        each set of the benchmark (odmd-v1, odmd-paper: normal, camera,
+                 object, robot; odms-detection: normal, perturb, robot, driving)
+      index      0-based, the example's place in its set: each index of each set
+                 exactly once
+      depth      the estimated depth Z_n at the last observation, in metres: a
+                 finite number (|depth| <= 1e12)
+      benchmark  optional; else --benchmark, else odmd-v1
+
+    Every rule: docs/format.md#validation.
     """
     from odmd_bench.evaluation.gates import check_ceiling, max_all_gate
     from odmd_bench.evaluation.report import format_per_example, format_result

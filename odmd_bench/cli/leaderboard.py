@@ -56,7 +56,7 @@ def build_command(root: Path | None, data_dir: Path | None, original: Path | Non
     from odmd_bench.leaderboard import build, write
 
     folder = _root(root)
-    built = build(folder, data_dir, original)
+    built = build(folder, data_dir, original, progress=lambda line: click.echo(line, err=True))
     for line in write(folder, built, plot=not no_plot):
         click.echo(line)
     n = sum(len(b.rows) for b in built.boards)
@@ -75,26 +75,49 @@ def build_command(root: Path | None, data_dir: Path | None, original: Path | Non
     "(re-runs every audited method: about a minute).",
 )
 def check_command(root: Path | None, data_dir: Path | None, original: Path | None, audits: bool) -> None:
-    """Fail (exit 2) unless every entry is valid and the committed table and JSON are what build writes now.
+    """Re-score every entry and compare the committed table and JSON with what build writes now.
 
-    Every difference is named (file, row, field, old and new). Each recorded audit file
-    must be well formed and match the board; --audits re-runs them.
+    A line per board on stderr while it runs; every difference is named (file, row,
+    field, old and new). Each recorded audit file must be well formed and match the
+    board; --audits also re-runs them.
+
+    \b
+    Exit status:
+      0  the committed files are what build writes, every entry re-scored
+      1  the gate failed: a committed file differs from a fresh build (with --audits:
+         or a recorded audit differs from its re-run)
+      2  bad input: an entry, reported.yaml or an audit file is invalid (every problem named)
     """
-    from odmd_bench.leaderboard import check
+    from odmd_bench.leaderboard import check_report
 
     folder = _root(root)
-    problems = check(folder, data_dir, original)
-    if audits and not problems:
+    report = check_report(folder, data_dir, original, progress=lambda line: click.echo(line, err=True))
+    if report.invalid:
+        n = len(report.invalid)
+        raise ValidationError(
+            f"leaderboard check failed ({folder}): {n} {'problem' if n == 1 else 'problems'} with the "
+            "entries; fix them, then run `odmd-bench leaderboard build`",
+            report.invalid,
+        )
+    differences = list(report.differences)
+    if audits and not report.differences:
         from odmd_bench.leaderboard.audit import rerun_audits
 
-        problems = rerun_audits(folder, data_dir, original, progress=lambda line: click.echo(line, err=True))
-    if problems:
-        raise ValidationError(
-            f"leaderboard check failed ({folder}): {len(problems)} "
-            f"{'problem' if len(problems) == 1 else 'problems'}; fix the entries, or run "
-            "`odmd-bench leaderboard build` and commit LEADERBOARD.md, leaderboard.json and README.md",
-            problems,
+        differences = rerun_audits(
+            folder, data_dir, original, progress=lambda line: click.echo(line, err=True)
         )
+    if differences:
+        n = len(differences)
+        click.echo(
+            f"fail: leaderboard check ({folder}): {n} {'difference' if n == 1 else 'differences'} from what "
+            + ("the audits give now" if not report.differences else "build writes now")
+            + "; run `odmd-bench leaderboard build` and commit LEADERBOARD.md, "
+            "leaderboard.json and README.md" + ("" if report.differences else " (or record the audit again)"),
+            err=True,
+        )
+        for line in differences:
+            click.echo(f"  - {line}", err=True)
+        click.get_current_context().exit(1)
     said = "; every recorded audit re-run" if audits else ""
     click.echo(f"leaderboard check passed: {folder} is what build writes, every entry re-scored{said}")
 

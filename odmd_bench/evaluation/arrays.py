@@ -93,6 +93,23 @@ def score_depths(
 
     Exported as ``odmd_bench.score``.
 
+    Expected input format (checked: every problem is named in one error)::
+
+        depths = {
+            "normal": np.array([1.337, 0.603, ...]),  # (N_normal,) metres
+            "camera": ...,  # one entry per set of the benchmark:
+            "object": ...,  #   odmd-v1, odmd-paper: normal, camera, object, robot
+            "robot": ...,   #   odms-detection: normal, perturb, robot, driving
+        }
+
+    - keys: the benchmark's set names, each once (or those of ``sets``); no other key;
+    - values: 1-D array-likes of real numbers (int or float dtype), one per example of
+      the set, **in index order**: ``depths[s][i]`` is the estimated depth ``Z_n`` at
+      the last observation of example ``i`` of ``load_split(split, benchmark)[s]``,
+      in metres; so ``len(depths[s]) == len(load_split(split, benchmark)[s])``;
+    - every value finite and at most ``1e12`` in size; zero or negative depths are
+      scored as given, with a warning.
+
     Args:
         benchmark: e.g. ``"odmd-v1"``.
         split: ``"val"`` or ``"test"``.

@@ -17,14 +17,15 @@ The verdict is "A better" or "B better" only when the interval excludes 0 *and*
 ``p < 1 - confidence``; otherwise "not distinguishable". Every set draws from its own
 random stream, made from ``seed`` and the set's name, so a set's result does not depend
 on which other sets are compared, and the same call gives the same numbers everywhere.
-The leaderboard forms its rank groups with :func:`compare_errors`.
+The leaderboard forms its rank groups with :class:`Resampled`: the comparison of
+:func:`compare_errors`, its draws made once for every pair of methods.
 """
 
 from __future__ import annotations
 
 import os
 import zlib
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
@@ -41,6 +42,8 @@ TIE = "not distinguishable"
 
 #: Resamples are drawn this many at a time, to bound memory (chunk x N indices).
 _CHUNK = 250
+#: :class:`Resampled` multiplies the draws of this many bytes at once (counts and signs).
+_BLOCK_BYTES = 64 * 2**20
 #: The most resamples a comparison draws (p-values to 1e-6; two float64 arrays of 8 MB).
 MAX_RESAMPLES = 1_000_000
 
@@ -105,17 +108,29 @@ def _rng(seed: int, name: str) -> np.random.Generator:
     return np.random.default_rng([seed, zlib.crc32(name.encode())])
 
 
+def _chunks(n: int, n_resamples: int, rng: np.random.Generator) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+    """The stream of draws, chunk by chunk: resampled indices (k, n) and signs (k, n) of +-1.0.
+
+    The one definition of what a comparison draws (:func:`_draws` and :class:`Resampled`).
+    """
+    for start in range(0, n_resamples, _CHUNK):
+        k = min(_CHUNK, n_resamples - start)
+        idx = rng.integers(0, n, size=(k, n), dtype=np.int32)
+        signs = rng.integers(0, 2, size=(k, n), dtype=np.int8).astype(np.float64) * 2.0 - 1.0
+        yield idx, signs
+
+
 def _draws(d: np.ndarray, n_resamples: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
     """Bootstrap means and sign-flipped means of ``d``, each (n_resamples,)."""
     n = d.shape[0]
     boot = np.empty(n_resamples)
     flip = np.empty(n_resamples)
-    for start in range(0, n_resamples, _CHUNK):
-        k = min(_CHUNK, n_resamples - start)
-        idx = rng.integers(0, n, size=(k, n), dtype=np.int32)
+    start = 0
+    for idx, signs in _chunks(n, n_resamples, rng):
+        k = idx.shape[0]
         boot[start : start + k] = d[idx].mean(axis=1)
-        signs = rng.integers(0, 2, size=(k, n), dtype=np.int8).astype(np.float64) * 2.0 - 1.0
         flip[start : start + k] = signs @ d / n
+        start += k
     return boot, flip
 
 
@@ -187,7 +202,23 @@ def compare_errors(
     """
     if list(errors_a) != list(errors_b):
         raise UsageError(f"A and B must cover the same sets; A has {list(errors_a)}, B has {list(errors_b)}")
-    if not errors_a:
+    _check_settings(errors_a, n_resamples, seed, confidence)
+    per_set: dict[str, PairedDifference] = {}
+    boots, flips = [], []
+    for s in errors_a:
+        ea, eb = _errors(s, errors_a[s], errors_b[s])
+        d = ea - eb
+        boot, flip = _draws(d, n_resamples, _rng(seed, s))
+        per_set[s] = _summary(
+            ea.size, float(ea.mean()), float(eb.mean()), float(d.mean()), boot, flip, confidence
+        )
+        boots.append(boot)
+        flips.append(flip)
+    return _combine(per_set, boots, flips, n_resamples, seed, confidence)
+
+
+def _check_settings(sets: Mapping[str, Any], n_resamples: int, seed: int, confidence: float) -> None:
+    if not sets:
         raise UsageError("nothing to compare: no sets")
     if not 1 <= n_resamples <= MAX_RESAMPLES:
         raise UsageError(f"n_resamples must be between 1 and {MAX_RESAMPLES:,}, got {n_resamples}")
@@ -195,32 +226,34 @@ def compare_errors(
         raise UsageError(f"seed must be >= 0, got {seed}")
     if not 0 < confidence < 1:
         raise UsageError(f"confidence must be between 0 and 1, got {confidence}")
-    per_set: dict[str, PairedDifference] = {}
-    boots, flips, means_a, means_b = [], [], [], []
-    for s in errors_a:
-        ea = np.asarray(errors_a[s], dtype=np.float64)
-        eb = np.asarray(errors_b[s], dtype=np.float64)
-        if ea.ndim != 1 or ea.shape != eb.shape or ea.size == 0:
-            raise UsageError(
-                f"set {s!r}: A and B need the same non-empty 1-D errors, got {ea.shape} and {eb.shape}"
-            )
-        if not (np.isfinite(ea).all() and np.isfinite(eb).all()):
-            raise UsageError(f"set {s!r}: errors must be finite")
-        d = ea - eb
-        boot, flip = _draws(d, n_resamples, _rng(seed, s))
-        ma, mb = float(ea.mean()), float(eb.mean())
-        per_set[s] = _summary(ea.size, ma, mb, float(d.mean()), boot, flip, confidence)
-        boots.append(boot)
-        flips.append(flip)
-        means_a.append(ma)
-        means_b.append(mb)
-    all_a, all_b = float(np.mean(means_a)), float(np.mean(means_b))
-    observed = float(np.mean([per_set[s].difference for s in per_set]))
+
+
+def _errors(s: str, *arrays: Any) -> list[np.ndarray]:
+    """The errors of one set as float64, every array the same non-empty 1-D shape and finite."""
+    out = [np.asarray(a, dtype=np.float64) for a in arrays]
+    if any(e.ndim != 1 or e.shape != out[0].shape or e.size == 0 for e in out):
+        shapes = " and ".join(str(e.shape) for e in out)
+        who = "A and B need" if len(out) == 2 else "the methods need"
+        raise UsageError(f"set {s!r}: {who} the same non-empty 1-D errors, got {shapes}")
+    if not all(np.isfinite(e).all() for e in out):
+        raise UsageError(f"set {s!r}: errors must be finite")
+    return out
+
+
+def _combine(
+    per_set: dict[str, PairedDifference],
+    boots: list[np.ndarray],
+    flips: list[np.ndarray],
+    n_resamples: int,
+    seed: int,
+    confidence: float,
+) -> Comparison:
+    """The comparison of ``All`` (stratified: the sets' resampled means averaged) beside the sets'."""
     overall = _summary(
         sum(p.n for p in per_set.values()),
-        all_a,
-        all_b,
-        observed,
+        float(np.mean([p.mean_a for p in per_set.values()])),
+        float(np.mean([p.mean_b for p in per_set.values()])),
+        float(np.mean([p.difference for p in per_set.values()])),
         np.mean(boots, axis=0),
         np.mean(flips, axis=0),
         confidence,
@@ -268,72 +301,109 @@ def compare_pairs(
     pairs = list(dict.fromkeys(pairs))
     if not pairs:
         return {}
-    if not 1 <= n_resamples <= MAX_RESAMPLES:
-        raise UsageError(f"n_resamples must be between 1 and {MAX_RESAMPLES:,}, got {n_resamples}")
-    if seed < 0:
-        raise UsageError(f"seed must be >= 0, got {seed}")
-    if not 0 < confidence < 1:
-        raise UsageError(f"confidence must be between 0 and 1, got {confidence}")
-    sets = list(errors[pairs[0][0]])
-    if not sets:
-        raise UsageError("nothing to compare: no sets")
-    per_set: dict[tuple[str, str], dict[str, PairedDifference]] = {p: {} for p in pairs}
-    boots: dict[tuple[str, str], list[np.ndarray]] = {p: [] for p in pairs}
-    flips: dict[tuple[str, str], list[np.ndarray]] = {p: [] for p in pairs}
-    for s in sets:
-        diffs = {}
-        for a, b in pairs:
-            if list(errors[a]) != sets or list(errors[b]) != sets:
+    used = list(dict.fromkeys(m for pair in pairs for m in pair))
+    drawn = Resampled({m: errors[m] for m in used}, n_resamples=n_resamples, seed=seed, confidence=confidence)
+    return {(a, b): drawn.compare(a, b) for a, b in pairs}
+
+
+class Resampled:
+    """Many methods' errors on the same examples, resampled once, for comparing any two of them.
+
+    :func:`compare_errors` draws, for each set, a stream that depends on the seed and the
+    set's name only: the resampled examples and the flipped signs are the same whatever
+    the two methods are. Here each method's bootstrap and sign-flip means are computed
+    once on that stream (products of the resample counts and the signs with every
+    method's errors at once), and a pair's means of differences are the differences of
+    its two methods' means. :meth:`compare` so gives what :func:`compare_errors` gives
+    for the pair (the same draws, none fewer), up to the order of floating-point
+    additions (about 1e-15, relative); it is what the leaderboard ranks with.
+
+    Args:
+        errors: ``{method: {set name: (N_set,) errors}}``, every method on the same sets
+            and examples.
+        n_resamples, seed, confidence: as for :func:`compare_errors`.
+
+    Raises:
+        UsageError: As :func:`compare_errors` does.
+
+    Example:
+        >>> import numpy as np
+        >>> e = np.linspace(1.0, 2.0, 50)
+        >>> r = Resampled({"a": {"normal": e}, "b": {"normal": e + 1.0}, "c": {"normal": e}})
+        >>> r.compare("a", "b").all.verdict, r.compare("a", "c").all.verdict
+        ('A better', 'not distinguishable')
+    """
+
+    def __init__(
+        self,
+        errors: Mapping[str, Mapping[str, Any]],
+        *,
+        n_resamples: int = 2000,
+        seed: int = 0,
+        confidence: float = 0.95,
+    ) -> None:
+        methods = list(errors)
+        sets = list(errors[methods[0]]) if methods else []
+        _check_settings(dict.fromkeys(sets), n_resamples, seed, confidence)
+        for m in methods:
+            if list(errors[m]) != sets:
                 raise UsageError(
-                    f"{a} and {b} must cover the sets {sets}; they have {list(errors[a])}, {list(errors[b])}"
+                    f"every method must cover the same sets; {methods[0]} has {sets}, {m} has {list(errors[m])}"
                 )
-            ea = np.asarray(errors[a][s], dtype=np.float64)
-            eb = np.asarray(errors[b][s], dtype=np.float64)
-            if ea.ndim != 1 or ea.shape != eb.shape or ea.size == 0:
-                raise UsageError(
-                    f"set {s!r}: {a} and {b} need the same non-empty 1-D errors, got {ea.shape} and {eb.shape}"
-                )
-            if not (np.isfinite(ea).all() and np.isfinite(eb).all()):
-                raise UsageError(f"set {s!r}: errors must be finite")
-            diffs[(a, b)] = (ea, eb, ea - eb)
-        sizes = {d.shape[0] for _, _, d in diffs.values()}
-        if len(sizes) != 1:
-            raise UsageError(f"set {s!r}: every method needs the same number of errors, got {sorted(sizes)}")
-        n = sizes.pop()
-        matrix = np.stack([d for _, _, d in diffs.values()], axis=1)  # (n, pairs)
-        boot = np.empty((n_resamples, len(diffs)))
-        flip = np.empty((n_resamples, len(diffs)))
-        rng = _rng(seed, s)
-        rows = np.arange(_CHUNK, dtype=np.int64)[:, None] * n
-        for start in range(0, n_resamples, _CHUNK):  # the draws of _draws, in its order
-            k = min(_CHUNK, n_resamples - start)
-            idx = rng.integers(0, n, size=(k, n), dtype=np.int32)
-            counts = np.bincount((rows[:k] + idx).ravel(), minlength=k * n).reshape(k, n)
-            boot[start : start + k] = counts.astype(np.float64) @ matrix / n
-            signs = rng.integers(0, 2, size=(k, n), dtype=np.int8).astype(np.float64) * 2.0 - 1.0
-            flip[start : start + k] = signs @ matrix / n
-        for j, (p, (ea, eb, d)) in enumerate(diffs.items()):
-            per_set[p][s] = _summary(
-                n, float(ea.mean()), float(eb.mean()), float(d.mean()), boot[:, j], flip[:, j], confidence
+        self.methods = {m: i for i, m in enumerate(methods)}
+        self.n_resamples, self.seed, self.confidence = n_resamples, seed, confidence
+        self._errors: dict[str, np.ndarray] = {}
+        self._boot: dict[str, np.ndarray] = {}
+        self._flip: dict[str, np.ndarray] = {}
+        for s in sets:
+            e = np.stack(_errors(s, *(errors[m][s] for m in methods)))  # (M, N)
+            self._errors[s] = e
+            self._boot[s], self._flip[s] = self._means(e, _rng(seed, s))
+
+    def _means(self, e: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+        """Every method's bootstrap and sign-flip means of ``e`` (M, N): each (M, n_resamples)."""
+        m, n = e.shape
+        boot = np.empty((m, self.n_resamples))
+        flip = np.empty((m, self.n_resamples))
+        # The draws of several chunks go into one product: fewer, larger calls into BLAS
+        # (whose idle threads spin between calls, which costs much on a busy machine).
+        rows = min(self.n_resamples, max(1, _BLOCK_BYTES // (16 * n * _CHUNK)) * _CHUNK)
+        counts = np.empty((rows, n))  # how often each example is drawn in each resample
+        signs = np.empty((rows, n))
+        start = drawn = 0
+        for idx, flips in _chunks(n, self.n_resamples, rng):
+            k = idx.shape[0]
+            counts[drawn : drawn + k] = np.bincount(
+                (idx + n * np.arange(k)[:, None]).ravel(), minlength=k * n
+            ).reshape(k, n)
+            signs[drawn : drawn + k] = flips
+            drawn += k
+            if drawn == rows or start + drawn == self.n_resamples:
+                block = slice(start, start + drawn)
+                boot[:, block] = e @ counts[:drawn].T / n
+                flip[:, block] = e @ signs[:drawn].T / n
+                start, drawn = start + drawn, 0
+        return boot, flip
+
+    def compare(self, a: str, b: str) -> Comparison:
+        """Method ``a`` (A) against method ``b`` (B), as :func:`compare_errors` compares them."""
+        unknown = [m for m in (a, b) if m not in self.methods]
+        if unknown:
+            raise UsageError(f"unknown method {unknown[0]!r}; expected one of {', '.join(self.methods)}")
+        i, j = self.methods[a], self.methods[b]
+        per_set: dict[str, PairedDifference] = {}
+        boots, flips = [], []
+        for s, e in self._errors.items():
+            ea, eb = e[i], e[j]
+            d = ea - eb
+            boot = self._boot[s][i] - self._boot[s][j]
+            flip = self._flip[s][i] - self._flip[s][j]
+            per_set[s] = _summary(
+                ea.size, float(ea.mean()), float(eb.mean()), float(d.mean()), boot, flip, self.confidence
             )
-            boots[p].append(boot[:, j])
-            flips[p].append(flip[:, j])
-    out = {}
-    for p in pairs:
-        sets_p = per_set[p]
-        overall = _summary(
-            sum(x.n for x in sets_p.values()),
-            float(np.mean([x.mean_a for x in sets_p.values()])),
-            float(np.mean([x.mean_b for x in sets_p.values()])),
-            float(np.mean([x.difference for x in sets_p.values()])),
-            np.mean(boots[p], axis=0),
-            np.mean(flips[p], axis=0),
-            confidence,
-        )
-        out[p] = Comparison(
-            sets=sets_p, all=overall, n_resamples=n_resamples, seed=seed, confidence=confidence
-        )
-    return out
+            boots.append(boot)
+            flips.append(flip)
+        return _combine(per_set, boots, flips, self.n_resamples, self.seed, self.confidence)
 
 
 def compare_results(

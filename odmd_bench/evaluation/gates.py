@@ -11,6 +11,7 @@ from collections.abc import Sequence
 
 from odmd_bench.errors import UsageError
 from odmd_bench.evaluation.compare import A_BETTER, Comparison, PairedDifference
+from odmd_bench.evaluation.report import signed
 from odmd_bench.evaluation.result import EvaluationResult
 
 
@@ -42,10 +43,11 @@ def max_all_gate(result: EvaluationResult, ceiling: float) -> tuple[bool, str]:
 
 
 def _because(name: str, d: PairedDifference, confidence: float) -> str:
-    # B - A: how many points of mean percent error the candidate adds.
+    # A - B, as the comparison's table prints it (A: the baseline, B: the candidate).
     return (
-        f"{name}: candidate - baseline = {-d.difference:+.2f} points of mean percent error, "
-        f"{confidence:.0%} interval [{-d.ci_high:+.2f}, {-d.ci_low:+.2f}], p = {d.p_value:.4f}"
+        f"{name}: A - B (baseline - candidate) = {signed(d.difference)} points of mean percent error, "
+        f"{confidence:.0%} interval [{signed(d.ci_low)}, {signed(d.ci_high)}], p = {d.p_value:.4f} "
+        "(negative: the baseline's error is lower)"
     )
 
 

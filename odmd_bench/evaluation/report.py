@@ -175,14 +175,25 @@ def write_per_example(path: str | os.PathLike[str], result: EvaluationResult) ->
 # --- comparisons -----------------------------------------------------------------
 
 
+def signed(x: float, decimals: int = 2) -> str:
+    """``x`` with its sign, as the comparison table shows it; a value that rounds to 0 is ``+0.00``.
+
+    Examples:
+        >>> signed(-0.0), signed(-0.004), signed(1.234), signed(-1.236)
+        ('+0.00', '+0.00', '+1.23', '-1.24')
+    """
+    text = f"{x:+.{decimals}f}"
+    return f"{0.0:+.{decimals}f}" if float(text) == 0 else text
+
+
 def _cmp_cells(name: str, d: PairedDifference) -> list[str]:
     return [
         name,
         str(d.n),
         f"{d.mean_a:.2f}",
         f"{d.mean_b:.2f}",
-        f"{d.difference:+.2f}",
-        f"[{d.ci_low:+.2f}, {d.ci_high:+.2f}]",
+        signed(d.difference),
+        f"[{signed(d.ci_low)}, {signed(d.ci_high)}]",
         f"{d.p_value:.4f}",
         d.verdict,
     ]

@@ -28,7 +28,7 @@ from odmd_bench.errors import UsageError, ValidationError
 MAX_PREDICTIONS_BYTES = 64 * 2**20
 
 #: What :func:`read_source` (and so :func:`~odmd_bench.evaluation.parse.parse_predictions`) reads.
-Source: TypeAlias = "bytes | bytearray | memoryview | str | os.PathLike[str] | BinaryIO"
+Source: TypeAlias = bytes | bytearray | memoryview | str | os.PathLike[str] | BinaryIO
 
 _GZIP_MAGIC = b"\x1f\x8b"
 

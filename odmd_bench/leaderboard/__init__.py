@@ -15,7 +15,8 @@ The package, by concern:
 - :mod:`~odmd_bench.leaderboard.reported`: results printed in papers (``reported.yaml``).
 - :mod:`~odmd_bench.leaderboard.render`: :func:`build` and the markdown, JSON and README
   texts; :mod:`~odmd_bench.leaderboard.plot`: the plot; :mod:`~odmd_bench.leaderboard.diff`:
-  :func:`check`, naming each file, row and field that differs;
+  :func:`check` (:func:`check_report` tells invalid input from differences), naming
+  each file, row and field that differs;
   :mod:`~odmd_bench.leaderboard.output`: :func:`write`, the outputs written at once;
   :mod:`~odmd_bench.leaderboard.dataframe`: :func:`frame`, the leaderboard in pandas.
 
@@ -36,7 +37,7 @@ and a row that starts a new group is distinguishably worse than the previous gro
 from odmd_bench.leaderboard.add import add_entry
 from odmd_bench.leaderboard.board import Board, Row, collect, data_version, load_board_data, score_entry
 from odmd_bench.leaderboard.dataframe import frame
-from odmd_bench.leaderboard.diff import check, diff_json, diff_markdown
+from odmd_bench.leaderboard.diff import CheckReport, check, check_report, diff_json, diff_markdown
 from odmd_bench.leaderboard.entry import (
     ENTRY_FILES,
     MAX_LENGTHS,
@@ -98,6 +99,7 @@ __all__ = [
     "Board",
     "BoardSpec",
     "Built",
+    "CheckReport",
     "Entry",
     "EntryMeta",
     "Ranked",
@@ -107,6 +109,7 @@ __all__ = [
     "board_digest",
     "build",
     "check",
+    "check_report",
     "collect",
     "data_version",
     "diff_json",

@@ -98,7 +98,8 @@ def frame(source: str | os.PathLike[str] | Built | None = None, *, reported: boo
     if isinstance(source, Built):
         text = source.json_text
     else:
-        path = Path(source if source is not None else find_root()) / JSON_FILE
+        here = "give the folder: frame('path/to/odmd-bench/leaderboard')"
+        path = Path(source if source is not None else find_root(otherwise=here)) / JSON_FILE
         try:
             text = path.read_text(encoding="utf-8")
         except OSError as e:

@@ -9,6 +9,8 @@ from __future__ import annotations
 import json
 import os
 import re
+from collections.abc import Callable
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from odmd_bench.errors import ValidationError
@@ -143,14 +145,47 @@ def diff_markdown(committed: str, built: str, name: str = MARKDOWN, limit: int =
     return out
 
 
+@dataclass(frozen=True)
+class CheckReport:
+    """What :func:`check_report` found; both empty when the leaderboard is right.
+
+    Attributes:
+        invalid: problems of the input: an entry (metadata, data hashes, predictions) or
+            ``reported.yaml`` that is invalid, so that nothing can be built (the command
+            exits 2).
+        differences: the committed files that differ from what ``build`` writes now
+            (the gate failed: the command exits 1).
+    """
+
+    invalid: list[str] = field(default_factory=list)
+    differences: list[str] = field(default_factory=list)
+
+
 def check(
     root: str | os.PathLike[str],
     data_dir: str | os.PathLike[str] | None = None,
     original: str | os.PathLike[str] | None = None,
     *,
     n_resamples: int | None = None,
+    progress: Callable[[str], None] | None = None,
 ) -> list[str]:
     """Everything that is wrong with the leaderboard folder, one line each (empty: all good).
+
+    The lines of :func:`check_report`, the invalid input first.
+    """
+    report = check_report(root, data_dir, original, n_resamples=n_resamples, progress=progress)
+    return report.invalid + report.differences
+
+
+def check_report(
+    root: str | os.PathLike[str],
+    data_dir: str | os.PathLike[str] | None = None,
+    original: str | os.PathLike[str] | None = None,
+    *,
+    n_resamples: int | None = None,
+    progress: Callable[[str], None] | None = None,
+) -> CheckReport:
+    """What is wrong with the leaderboard folder: invalid input apart from differences.
 
     Entry problems (metadata, data hashes, predictions) come first; when there are
     none, the committed ``LEADERBOARD.md`` and ``leaderboard.json`` (and the summary
@@ -163,12 +198,13 @@ def check(
         data_dir: the data folder (default: the package's).
         original: the original release's folder, imported from when a set is missing.
         n_resamples: resamples of the rank groups' comparison (default: the board's).
+        progress: called with one line per board once it is scored.
     """
     root = Path(root)
     try:
-        built = build(root, data_dir, original, n_resamples=n_resamples)
+        built = build(root, data_dir, original, n_resamples=n_resamples, progress=progress)
     except ValidationError as e:
-        return e.problems or [e.message]
+        return CheckReport(invalid=e.problems or [e.message])
     problems = []
     for name, text, differ in (
         (MARKDOWN, built.markdown, diff_markdown),
@@ -192,4 +228,4 @@ def check(
         problems.extend(
             found or [f"{README}: the leaderboard summary differs from what build writes (whitespace)"]
         )
-    return problems
+    return CheckReport(differences=problems)

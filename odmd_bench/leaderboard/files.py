@@ -42,11 +42,16 @@ PLOT_SOURCE_KEY = "odmd-bench leaderboard.json sha256"
 MAX_PLOT_BYTES = 64 * 1024 * 1024
 
 
-def find_root(start: str | os.PathLike[str] | None = None) -> Path:
+def find_root(start: str | os.PathLike[str] | None = None, *, otherwise: str = "pass --root") -> Path:
     """The ``leaderboard`` folder in ``start`` (default: the current folder) or a parent.
 
+    Args:
+        start: where to look first.
+        otherwise: what the error tells the caller to do instead (the command line's
+            option by default; Python callers name their own argument).
+
     Raises:
-        UsageError: When there is none; pass ``--root``.
+        UsageError: When there is none.
     """
     here = Path(start if start is not None else Path.cwd()).resolve()
     for folder in (here, *here.parents):
@@ -56,7 +61,7 @@ def find_root(start: str | os.PathLike[str] | None = None) -> Path:
             return folder
     raise UsageError(
         f"no leaderboard folder (one holding {ENTRIES}/) in {here} or its parents; "
-        "run from the repository or pass --root"
+        f"run from the repository or {otherwise}"
     )
 
 

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
-from odmd_bench.evaluation.compare import TIE, PairedDifference, compare_errors
+from odmd_bench.evaluation.compare import TIE, PairedDifference, Resampled
 
 #: Settings of the paired comparison that forms rank groups.
 RANK_RESAMPLES = 2000
@@ -74,6 +74,10 @@ def rank_groups(
     Returns:
         The rows, best first.
 
+    Every method's errors are resampled once (:class:`~odmd_bench.evaluation.compare.Resampled`):
+    each comparison of the walk is then the one :func:`~odmd_bench.evaluation.compare.compare_errors`
+    makes, on the same draws, without drawing them again for every pair.
+
     Examples:
         >>> import numpy as np
         >>> e = np.linspace(1, 2, 100)
@@ -87,12 +91,15 @@ def rank_groups(
     }
     order = sorted(errors, key=lambda k: (means[k], k))
     out: list[Ranked] = []
+    shared: Resampled | None = None  # drawn at the first comparison: a lone row needs none
     for k in order:
         if not out:
             out.append(Ranked(k, means[k], 1, k))
             continue
         group, leader = out[-1].group, out[-1].leader
-        c = compare_errors(errors[leader], errors[k], n_resamples=n, seed=seed, confidence=confidence)
+        if shared is None:
+            shared = Resampled(errors, n_resamples=n, seed=seed, confidence=confidence)
+        c = shared.compare(leader, k)
         if c.all.verdict == TIE:
             out.append(Ranked(k, means[k], group, leader, versus_leader=c.all))
         else:

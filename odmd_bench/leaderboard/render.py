@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import json
 import os
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -41,8 +41,11 @@ def build(
     original: str | os.PathLike[str] | None = None,
     *,
     n_resamples: int | None = None,
+    progress: Callable[[str], None] | None = None,
 ) -> Built:
     """Everything ``leaderboard build`` writes, computed (nothing is written).
+
+    ``progress`` is called with a line per board (see :func:`~odmd_bench.leaderboard.board.collect`).
 
     Raises:
         ValidationError: Naming every problem with the entries (metadata, data,
@@ -51,7 +54,7 @@ def build(
     from odmd_bench.leaderboard.audit_files import audit_problems, read_audits, shown
 
     n = resamples(n_resamples)
-    boards, problems = collect(root, data_dir, original, n_resamples=n)
+    boards, problems = collect(root, data_dir, original, n_resamples=n, progress=progress)
     recorded, found = read_audits(root)
     problems += found + audit_problems(recorded, boards)
     audits = shown(recorded)
