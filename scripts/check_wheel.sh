@@ -192,6 +192,10 @@ if [ -n "$original" ]; then
     # CI's leaderboard gate: every entry re-scored from its committed predictions (a line per board).
     run base leaderboard check --root "$repo/leaderboard" --original "$original"
     grep -v "up to date" "$work/out" | sed 's/^/    /'
+    # The recorded fresh-seed audits re-run (they run DBox, so in the venv with torch): a
+    # committed audit that a re-run does not give fails.
+    run full leaderboard check --audits --root "$repo/leaderboard" --original "$original"
+    grep -v "up to date" "$work/out" | sed 's/^/    /'
 else
     echo "  SKIPPED leaderboard check: no original release (see above)"
 fi

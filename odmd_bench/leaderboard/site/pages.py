@@ -59,7 +59,11 @@ class ExtraColumn:
 #: the method page, where the entry's ``leaderboard.json`` row has it (rows without it show
 #: "-"). A new field of the board (for example an audit's fresh-seed All) is shown by
 #: adding it here, e.g. ``ExtraColumn("audit", "Fresh-seed All", ("audit", "all"))``.
-EXTRA_COLUMNS: tuple[ExtraColumn, ...] = ()
+EXTRA_COLUMNS: tuple[ExtraColumn, ...] = (
+    # The recorded fresh-seed audit (leaderboard audit): the mean of the three generated sets
+    # on fresh draws, beside the committed test's; only the odmd-v1 board's rows have it.
+    ExtraColumn("fresh", "Fresh-seed mean (audit)", ("audit", "fresh")),
+)
 
 
 def template(name: str) -> Template:
