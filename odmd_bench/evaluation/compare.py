@@ -70,7 +70,7 @@ def minimum_resamples(confidence: float) -> int:
 
 
 def resolution_problem(n_resamples: int, confidence: float) -> str | None:
-    """Why a comparison with these settings could never find a difference (None: it can).
+    r"""Why a comparison with these settings could never find a difference (None: it can).
 
     The verdict needs ``p < 1 - confidence`` and ``p`` is at least ``1 / (1 + n_resamples)``:
     when that floor is not below the threshold, every verdict would be "not distinguishable"
