@@ -6,10 +6,9 @@ import datetime as _dt
 import gzip
 import io
 import os
-import tempfile
 from pathlib import Path
 
-from odmd_bench.data.atomic import atomic_paths
+from odmd_bench.data.atomic import atomic_paths, temp_folder
 from odmd_bench.data.examples import Examples
 from odmd_bench.errors import UsageError, ValidationError
 from odmd_bench.evaluation.scoring import EvaluationResult
@@ -121,8 +120,8 @@ def add_entry(
     }
     if notes:
         meta["notes"] = notes
-    with tempfile.TemporaryDirectory(prefix="odmd-leaderboard-add-") as tmp:
-        staged = Path(tmp) / method / spec.folder
+    with temp_folder() as tmp:  # a killed add's folder is removed by the next writer
+        staged = tmp / method / spec.folder
         staged.mkdir(parents=True)
         (staged / "predictions.csv.gz").write_bytes(_gzip_bytes(data))
         (staged / "entry.yaml").write_text(
