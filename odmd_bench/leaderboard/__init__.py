@@ -56,10 +56,12 @@ from odmd_bench.leaderboard.files import (
     README_START,
     board_digest,
     discover,
+    entry_file_problems,
     find_root,
     plot_source,
     read_entry,
     readme_path,
+    validate_entry,
     write,
 )
 from odmd_bench.leaderboard.ranking import RANK_CONFIDENCE, RANK_RESAMPLES, RANK_SEED, Ranked, rank_groups
@@ -111,6 +113,7 @@ __all__ = [
     "diff_json",
     "diff_markdown",
     "discover",
+    "entry_file_problems",
     "find_root",
     "frame",
     "load_board_data",
@@ -123,5 +126,6 @@ __all__ = [
     "render_markdown",
     "render_readme_block",
     "score_entry",
+    "validate_entry",
     "write",
 ]

@@ -149,13 +149,14 @@ def check(
     original: str | os.PathLike[str] | None = None,
     *,
     n_resamples: int | None = None,
+    plot: bool = True,
 ) -> list[str]:
     """Everything that is wrong with the leaderboard folder, one line each (empty: all good).
 
     Entry problems (metadata, data hashes, predictions) come first; when there are
     none, the committed ``LEADERBOARD.md`` and ``leaderboard.json`` (and the summary
     between the markers of ``../README.md``, where it has them) are compared with what
-    ``build`` would write now, and ``leaderboard.png``, where there is one, must record
+    ``build`` would write now, and ``leaderboard.png`` must be there and record
     the SHA-256 of that JSON (its pixels are not compared: they depend on matplotlib).
 
     Args:
@@ -163,6 +164,7 @@ def check(
         data_dir: the data folder (default: the package's).
         original: the original release's folder, imported from when a set is missing.
         n_resamples: resamples of the rank groups' comparison (default: the board's).
+        plot: whether ``leaderboard.png`` must be there (``leaderboard check``: always).
     """
     root = Path(root)
     try:
@@ -182,7 +184,7 @@ def check(
         if committed != text:
             found = differ(committed, text, name)
             problems.extend(found or [f"{name}: differs from what build writes (whitespace or line ends)"])
-    stale_plot = plot_problem(root, built.json_text)
+    stale_plot = plot_problem(root, built.json_text, required=plot)
     if stale_plot is not None:
         problems.append(stale_plot)
     stale = stale_readme(root, built.readme_block)

@@ -1,0 +1,252 @@
+"""Direct tests of the defences a mutation run found guarded only by chance (issue 38, item 8).
+
+Each pins one rule so that a hand-made bug in it fails a test named for it: the safe
+unpickler's allow-list exactly, the rank-group chain rule, statistics whose extreme is
+the last example, a predictions file with exactly one row missing, the hash checks.
+"""
+
+from __future__ import annotations
+
+import io
+import pickle
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import odmd_bench
+from odmd_bench import ImportRefused, ValidationError
+from odmd_bench.data import importer
+from odmd_bench.data.importer import RestrictedUnpickler, safe_unpickle
+from odmd_bench.evaluation.compare import A_BETTER, TIE, compare_errors
+from odmd_bench.evaluation.metrics import set_metrics, summarize
+from odmd_bench.leaderboard.ranking import rank_groups
+
+# --- the safe unpickler -------------------------------------------------------------------
+
+#: Exactly what an ODMD pickle needs, and nothing more.
+ALLOWED = {
+    ("numpy.core.multiarray", "_reconstruct"),
+    ("numpy._core.multiarray", "_reconstruct"),
+    ("numpy", "ndarray"),
+    ("numpy", "dtype"),
+}
+
+
+def test_the_allow_list_is_exactly_what_an_odmd_pickle_needs() -> None:
+    assert set(importer._ALLOWED) == ALLOWED
+    for module, name in ALLOWED:
+        got = RestrictedUnpickler(io.BytesIO(b"")).find_class(module, name)
+        assert got is {"ndarray": np.ndarray, "dtype": np.dtype}.get(name, got)
+        assert callable(got)
+
+
+def _global(module: str, name: str, protocol: int) -> bytes:
+    """A pickle whose only content is the global ``module.name`` (then called with no argument)."""
+    if protocol >= 4:  # STACK_GLOBAL: two strings on the stack
+        m, n = module.encode(), name.encode()
+        body = b"\x8c" + bytes([len(m)]) + m + b"\x8c" + bytes([len(n)]) + n + b"\x93"
+    else:  # GLOBAL: "module\nname\n"
+        body = b"c" + module.encode() + b"\n" + name.encode() + b"\n"
+    return b"\x80" + bytes([protocol]) + body + b")R."
+
+
+HOSTILE = [
+    ("builtins", "getattr"),
+    ("builtins", "eval"),
+    ("builtins", "exec"),
+    ("builtins", "__import__"),
+    ("os", "system"),
+    ("posix", "system"),
+    ("subprocess", "Popen"),
+    ("numpy", "load"),
+    ("numpy", "frombuffer"),
+    ("numpy", "fromfile"),
+    ("numpy", "save"),
+    ("numpy.core.multiarray", "scalar"),
+    ("numpy._core.multiarray", "scalar"),
+    ("numpy.lib.npyio", "load"),
+    ("numpy.testing", "assert_equal"),
+    ("numpy.ndarray", "tofile"),
+    ("numpy", "_reconstruct"),  # an allowed name under another module
+    ("numpy.core.multiarray", "ndarray"),  # and an allowed module with another name
+    ("numpy ", "ndarray"),
+    ("Numpy", "ndarray"),
+]
+
+
+@pytest.mark.parametrize("protocol", [2, 4])
+@pytest.mark.parametrize(("module", "name"), HOSTILE, ids=[f"{m}.{n}" for m, n in HOSTILE])
+def test_a_pickle_naming_any_other_global_is_refused_before_it_runs(
+    module: str, name: str, protocol: int
+) -> None:
+    with pytest.raises(ImportRefused) as info:
+        safe_unpickle(_global(module, name, protocol), "evil.pk")
+    assert info.value.message == (
+        f"evil.pk: the pickle asks for {module}.{name}, which an ODMD file never needs; refused before "
+        "anything ran (allowed: numpy arrays and dtypes only)"
+    )
+
+
+def test_persistent_ids_are_refused() -> None:
+    evil = b"\x80\x02X\x03\x00\x00\x00abcQ."  # BINPERSID of the string 'abc'
+    with pytest.raises(ImportRefused, match="evil.pk: the pickle uses persistent ids"):
+        safe_unpickle(evil, "evil.pk")
+
+
+def test_arrays_dicts_and_numbers_still_load() -> None:
+    obj = {"a": np.arange(6, dtype=np.float64).reshape(2, 3), "b": [1, 2.5, "x"], "c": np.dtype("<i4")}
+    for protocol in (3, 4):  # protocol 2 pickles bytes through _codecs.encode: refused, rightly
+        back = safe_unpickle(pickle.dumps(obj, protocol=protocol))
+        assert back["b"] == [1, 2.5, "x"] and back["c"] == np.dtype("<i4")
+        assert np.array_equal(back["a"], obj["a"]) and back["a"].dtype == np.float64
+
+
+def test_a_broken_pickle_is_refused_naming_it() -> None:
+    with pytest.raises(ImportRefused, match=r"^x.pk: not a readable pickle \(EOFError"):
+        safe_unpickle(b"\x80\x02}q\x00", "x.pk")  # ends before STOP
+
+
+# --- rank groups ----------------------------------------------------------------------------
+
+
+def test_a_group_is_made_by_its_leader_not_by_a_chain() -> None:
+    """B ties the leader A and C ties B, but C is worse than A: C leads group 2."""
+    rng = np.random.default_rng(48)
+    x = rng.gamma(2.0, 5.0, 400)
+    a = {"s": x}
+    b = {"s": x + 0.25 + rng.normal(0.0, 3.0, 400)}
+    c = {"s": x + 0.6 + rng.normal(0.0, 0.5, 400)}
+    n = 2000
+    assert compare_errors(a, b, n_resamples=n).all.verdict == TIE
+    assert compare_errors(b, c, n_resamples=n).all.verdict == TIE
+    assert compare_errors(a, c, n_resamples=n).all.verdict == A_BETTER
+    ranked = rank_groups({"c": c, "a": a, "b": b}, n_resamples=n)
+    assert [(r.key, r.group, r.leader) for r in ranked] == [("a", 1, "a"), ("b", 1, "a"), ("c", 2, "c")]
+    assert ranked[1].versus_leader == compare_errors(a, b, n_resamples=n).all
+    assert ranked[2].versus_previous == compare_errors(a, c, n_resamples=n).all  # against A, not B
+    assert ranked[0].versus_leader is None and ranked[1].versus_previous is None
+
+
+def test_rows_are_sorted_by_all_then_by_key() -> None:
+    e = np.linspace(1.0, 2.0, 50)
+    ranked = rank_groups({"zz": {"s": e}, "aa": {"s": e}, "mm": {"s": e - 0.5}}, n_resamples=200)
+    assert [r.key for r in ranked] == ["mm", "aa", "zz"]
+    assert [r.all_mean for r in ranked] == [pytest.approx(1.0), pytest.approx(1.5), pytest.approx(1.5)]
+
+
+# --- statistics -----------------------------------------------------------------------------
+
+
+def test_statistics_see_the_last_example() -> None:
+    e = np.array([3.0, 1.0, 2.0, 9.0])  # the maximum is last
+    assert summarize(e) == {"mean": 3.75, "median": 2.5, "min": 1.0, "max": 9.0, "std": float(np.std(e))}
+    assert summarize(e[::-1] * -1 + 10)["min"] == 1.0  # the minimum last: [1, 8, 9, 7] reversed
+    truth = np.array([1.0, 2.0, 4.0, 5.0])
+    pred = np.array([1.0, 2.0, 4.0, 10.0])  # only the last is wrong
+    m = set_metrics(truth, pred)
+    assert m["n"] == 4
+    assert m["percent_error"]["max"] == 100.0 and m["absolute_error"]["max"] == 5.0
+    assert m["percent_error"]["mean"] == 25.0 and m["absolute_error"]["mean"] == 1.25
+
+
+# --- predictions checks ---------------------------------------------------------------------
+
+
+@pytest.fixture()
+def data(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    from odmd_bench.data.io import write_sets
+    from odmd_bench.data.registry import set_file
+
+    d = tmp_path / "data"
+    sets = {s: odmd_bench.generate(4, rng=i) for i, s in enumerate(("normal", "camera", "object", "robot"))}
+    write_sets(set_file("odmd-paper", "test", d), sets)
+    monkeypatch.setenv("ODMD_BENCH_DATA", str(d))
+    return d
+
+
+@pytest.mark.parametrize("missing", ["test,normal,0,", "test,robot,3,"])
+def test_a_file_with_exactly_one_row_missing_is_refused(data: Path, tmp_path: Path, missing: str) -> None:
+    p = tmp_path / "p.csv"
+    odmd_bench.write_predictions(
+        p, "test", {s: ex.depth for s, ex in odmd_bench.load_split("test", "odmd-paper").items()}
+    )
+    lines = p.read_text().splitlines(keepends=True)
+    assert odmd_bench.evaluate(p, benchmark="odmd-paper").all_percent_error_mean == 0.0
+    p.write_text("".join(ln for ln in lines if not ln.startswith(missing)))
+    with pytest.raises(ValidationError) as info:
+        odmd_bench.evaluate(p, benchmark="odmd-paper")
+    set_name, index = missing.split(",")[1:3]
+    assert info.value.problems == [
+        f"1 of the 4 examples of set {set_name!r} have no row (missing indices {index})"
+    ]
+
+
+# --- hash checks ----------------------------------------------------------------------------
+
+
+def test_every_array_and_attribute_is_in_a_hash(tmp_path: Path) -> None:
+    """A change to any array byte, dtype, shape or name, or to any attribute, changes a hash."""
+    from odmd_bench.data.hashing import content_sha256, meta_sha256
+
+    arrays = {"boxes": np.arange(8.0).reshape(2, 4), "depth": np.array([1.0, 2.0])}
+    base = content_sha256(arrays)
+    assert base == content_sha256({k: arrays[k] for k in ("depth", "boxes")})  # order-free
+    big = {k: v.astype(v.dtype.newbyteorder(">")) for k, v in arrays.items()}
+    assert content_sha256(big) == base  # byte order is not content
+    changed = [
+        {**arrays, "depth": np.array([1.0, 2.0000000000000004])},
+        {**arrays, "depth": np.array([2.0, 1.0])},
+        {**arrays, "depth": np.array([1.0, 2.0], dtype=np.float32)},
+        {**arrays, "boxes": arrays["boxes"].reshape(4, 2)},
+        {"boxez": arrays["boxes"], "depth": arrays["depth"]},
+        {**arrays, "extra": np.zeros(0)},
+        {"boxes": arrays["boxes"]},
+    ]
+    digests = [content_sha256(c) for c in changed]
+    assert base not in digests and len(set(digests)) == len(digests)
+    attrs = {"fx": 205.5, "benchmark": "odmd-v1", "set": "robot"}
+    metas = [
+        meta_sha256(attrs),
+        meta_sha256({**attrs, "fx": 205.50000000000003}),
+        meta_sha256({**attrs, "set": "camera"}),
+    ]
+    metas.append(meta_sha256({k: v for k, v in attrs.items() if k != "fx"}))
+    assert len(set(metas)) == 4
+    assert (
+        meta_sha256({**attrs, "content_sha256": "x", "meta_sha256": "y"}) == metas[0]
+    )  # the hashes themselves are not
+
+
+def test_a_set_whose_array_or_attribute_changed_is_refused_on_load(tmp_path: Path) -> None:
+    import h5py
+
+    from odmd_bench.data.io import read_set, write_sets
+
+    f = tmp_path / "x.h5"
+    write_sets(f, {"normal": odmd_bench.generate(3, rng=0)})
+    read_set(f, "normal")  # verifies
+    with h5py.File(f, "r+") as h:
+        h["normal/depth"][-1] += 1e-9  # the last value, changed in its last bits
+    with pytest.raises(odmd_bench.DataError, match="is corrupt or altered: its arrays hash to"):
+        read_set(f, "normal")
+    write_sets(f, {"normal": odmd_bench.generate(3, rng=0)})
+    with h5py.File(f, "r+") as h:
+        h["normal"].attrs["image_width"] = h["normal"].attrs["image_width"] + 1
+    with pytest.raises(odmd_bench.DataError, match="is altered: its attributes"):
+        read_set(f, "normal")
+
+
+def test_a_set_that_is_not_its_pinned_version_is_named() -> None:
+    from odmd_bench.data.store import check_against_manifest, pin
+
+    right = pin("odmd-v1", "test", "robot")["sha256"]
+    assert check_against_manifest("odmd-v1", "test", "robot", right) is None
+    wrong = ("0" if right[0] != "0" else "1") + right[1:]
+    said = check_against_manifest("odmd-v1", "test", "robot", wrong)
+    assert said == (
+        f"odmd-v1 test robot: content SHA-256 {wrong[:16]}... differs from the pinned {right[:16]}... "
+        "in splits/odmd-v1.json"
+    )
+    last = right[:-1] + ("0" if right[-1] != "0" else "1")  # the last digit too
+    assert check_against_manifest("odmd-v1", "test", "robot", last) is not None
