@@ -90,8 +90,15 @@ def test_a_pickle_naming_any_other_global_is_refused_before_it_runs(
 
 def test_persistent_ids_are_refused() -> None:
     evil = b"\x80\x02X\x03\x00\x00\x00abcQ."  # BINPERSID of the string 'abc'
-    with pytest.raises(ImportRefused, match="evil.pk: the pickle uses persistent ids"):
+    with pytest.raises(ImportRefused) as info:
         safe_unpickle(evil, "evil.pk")
+    assert (
+        info.value.message
+        == "evil.pk: the pickle uses persistent ids, which an ODMD file never does; refused"
+    )
+    with pytest.raises(ImportRefused) as info:
+        safe_unpickle(_global("os", "system", 4))  # named "<bytes>" when no origin is given
+    assert info.value.message.startswith("<bytes>: the pickle asks for os.system,")
 
 
 def test_arrays_dicts_and_numbers_still_load() -> None:
@@ -126,6 +133,39 @@ def test_a_group_is_made_by_its_leader_not_by_a_chain() -> None:
     assert ranked[1].versus_leader == compare_errors(a, b, n_resamples=n).all
     assert ranked[2].versus_previous == compare_errors(a, c, n_resamples=n).all  # against A, not B
     assert ranked[0].versus_leader is None and ranked[1].versus_previous is None
+
+
+def test_rank_groups_use_the_settings_they_are_given(monkeypatch: pytest.MonkeyPatch) -> None:
+    from odmd_bench.leaderboard import ranking
+
+    assert ranking.resamples(None) == ranking.RANK_RESAMPLES == 2000 and ranking.resamples(77) == 77
+    monkeypatch.setattr(ranking, "RANK_RESAMPLES", 123)
+    assert ranking.resamples(None) == 123  # read when called, so that tests can patch it
+    rng = np.random.default_rng(1)
+    a = {"s": rng.gamma(2.0, 5.0, 300)}
+    b = {"s": a["s"] + rng.normal(0.0, 2.0, 300)}
+    for kw in (
+        {"n_resamples": 50, "seed": 3, "confidence": 0.9},
+        {"n_resamples": 60, "seed": 4, "confidence": 0.8},
+    ):
+        (_, second) = rank_groups({"a": a, "b": b}, **kw)  # type: ignore[arg-type]
+        first_key = "a" if np.mean(a["s"]) <= np.mean(b["s"]) else "b"
+        lead, other = (a, b) if first_key == "a" else (b, a)
+        expected = compare_errors(lead, other, **kw).all  # type: ignore[arg-type]
+        assert (second.versus_leader or second.versus_previous) == expected
+    (_, second) = rank_groups({"a": a, "b": b})
+    assert (second.versus_leader or second.versus_previous) == compare_errors(
+        *((a, b) if np.mean(a["s"]) <= np.mean(b["s"]) else (b, a)), n_resamples=123
+    ).all
+
+
+def test_all_is_the_float64_mean_of_the_set_means() -> None:
+    e = np.random.default_rng(0).gamma(2.0, 5.0, 1001).astype(np.float32)
+    assert float(np.mean(e)) != float(np.mean(e.astype(np.float64)))  # float32 means differ
+    (row,) = rank_groups({"m": {"s": e, "t": e[:10]}}, n_resamples=50)
+    assert (
+        row.all_mean == (float(np.mean(e.astype(np.float64))) + float(np.mean(e[:10].astype(np.float64)))) / 2
+    )
 
 
 def test_rows_are_sorted_by_all_then_by_key() -> None:
@@ -250,3 +290,53 @@ def test_a_set_that_is_not_its_pinned_version_is_named() -> None:
     )
     last = right[:-1] + ("0" if right[-1] != "0" else "1")  # the last digit too
     assert check_against_manifest("odmd-v1", "test", "robot", last) is not None
+
+
+def test_the_arrays_and_attributes_a_set_is_hashed_by() -> None:
+    from odmd_bench.data.hashing import (
+        CORE_ARRAYS,
+        HASH_ATTRS,
+        attr_value,
+        content_sha256,
+        group_attrs,
+        meta_sha256,
+        plain_value,
+        set_arrays,
+    )
+
+    ex = odmd_bench.generate(3, perturbation="both", rng=0)
+    arrays = set_arrays(ex)
+    assert CORE_ARRAYS == ("boxes", "detected", "camera", "depth") and HASH_ATTRS == (
+        "content_sha256",
+        "meta_sha256",
+    )
+    assert set(arrays) == {*CORE_ARRAYS, "observation_depth", *ex.extras}
+    assert all(arrays[k] is getattr(ex, k) for k in (*CORE_ARRAYS, "observation_depth"))
+    clash = odmd_bench.Examples(ex.boxes, ex.detected, ex.camera, ex.depth, extras={"depth": ex.depth})
+    with pytest.raises(odmd_bench.DataError, match="^extra array 'depth' clashes with a core array$"):
+        set_arrays(clash)
+    assert attr_value({"b": 1, "a": [2, 3]}) == '{"a": [2, 3], "b": 1}'
+    assert attr_value([1, "x"]) == '[1, "x"]' and attr_value((1,)) == "[1]" and attr_value(2.5) == 2.5
+    assert plain_value(b"odmd") == "odmd" and plain_value(np.array([1, 2])) == [1, 2]
+    assert plain_value(np.float32(0.5)) == 0.5 and type(plain_value(np.int64(3))) is int
+    assert plain_value("x") == "x"
+    ex.attrs.update(content_sha256="stale", meta_sha256="stale", gone=None, nested={"k": [1]})
+    attrs = group_attrs(ex, "robot")
+    assert attrs["content_sha256"] == content_sha256(arrays)
+    assert attrs["meta_sha256"] == meta_sha256(attrs) != "stale"
+    assert (attrs["set"], attrs["n"], attrs["n_obs"], attrs["nested"]) == ("robot", 3, ex.n_obs, '{"k": [1]}')
+    assert "gone" not in attrs
+    assert group_attrs(ex, "robot", digest="d" * 64)["content_sha256"] == "d" * 64
+
+
+def test_file_sha256_hashes_every_byte(tmp_path: Path) -> None:
+    import hashlib
+
+    from odmd_bench.data.hashing import file_sha256
+
+    f = tmp_path / "f.bin"
+    data = np.random.default_rng(0).bytes(5 * 2**20 // 2 + 7)  # more than two chunks of 1 MiB
+    f.write_bytes(data)
+    assert file_sha256(f) == hashlib.sha256(data).hexdigest()
+    f.write_bytes(b"")
+    assert file_sha256(str(f)) == hashlib.sha256(b"").hexdigest()
