@@ -340,3 +340,96 @@ def test_file_sha256_hashes_every_byte(tmp_path: Path) -> None:
     assert file_sha256(f) == hashlib.sha256(data).hexdigest()
     f.write_bytes(b"")
     assert file_sha256(str(f)) == hashlib.sha256(b"").hexdigest()
+
+
+def test_metrics_are_float64_and_name_every_problem() -> None:
+    from odmd_bench import UsageError
+    from odmd_bench.evaluation.metrics import all_sets_mean, check_depths
+
+    t32 = np.random.default_rng(0).gamma(2.0, 5.0, 1001).astype(np.float32) + np.float32(1)
+    p32 = (t32 * np.float32(1.1)).astype(np.float32)
+    t, p = check_depths(t32, p32)
+    assert t.dtype == p.dtype == np.float64
+    e = np.abs(p32.astype(np.float64) - t32.astype(np.float64))
+    assert summarize(e.astype(np.float32))["mean"] == float(np.mean(e.astype(np.float32).astype(np.float64)))
+    assert summarize(e.astype(np.float32))["mean"] != float(
+        np.mean(e.astype(np.float32))
+    )  # float32 would differ
+    means = {s: np.float32(v) for s, v in zip("abc", e[:3], strict=True)}
+    assert all_sets_mean(means) == float(np.mean(e[:3].astype(np.float32).astype(np.float64)))
+    with pytest.raises(UsageError) as info:
+        check_depths(np.ones((2, 2)), np.ones(4))
+    assert info.value.message == "cannot compute depth errors"
+    assert info.value.problems == ["depths must be 1-D, got shapes (2, 2) and (4,)"]
+    with pytest.raises(UsageError) as info:
+        check_depths(np.ones(4), np.ones((4, 1)))
+    assert info.value.problems == ["depths must be 1-D, got shapes (4,) and (4, 1)"]
+    with pytest.raises(UsageError) as info:
+        check_depths([1.0, 0.0], [np.nan, 1.0])
+    assert info.value.problems == ["true depths must be finite and > 0", "estimated depths must be finite"]
+    with pytest.raises(UsageError) as info:
+        summarize(np.zeros((0,)))
+    assert info.value.message == "errors must be a non-empty 1-D array, got shape (0,)"
+    with pytest.raises(UsageError) as info:
+        all_sets_mean({})
+    assert info.value.message == "All needs at least one set"
+
+
+def test_file_sha256_reads_in_bounded_chunks(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A weights or original file is hashed 1 MiB at a time, never read whole into memory."""
+    import builtins
+
+    from odmd_bench.data import hashing
+
+    sizes: list[object] = []
+
+    class Recording(io.BufferedReader):
+        def read(self, size: int | None = -1, /) -> bytes:
+            sizes.append(size)
+            return super().read(size)
+
+    def recording_open(path: object, mode: str = "r", *args: object, **kw: object) -> object:
+        raw = builtins.open(path, mode, *args, buffering=0, **kw)  # type: ignore[call-overload]  # noqa: SIM115
+        return Recording(raw)
+
+    monkeypatch.setattr(hashing, "open", recording_open, raising=False)
+    f = tmp_path / "f.bin"
+    f.write_bytes(b"x" * (3 * 2**20 + 5))
+    import hashlib
+
+    assert hashing.file_sha256(f) == hashlib.sha256(f.read_bytes()).hexdigest()
+    assert sizes and all(s == 2**20 for s in sizes), sizes
+
+
+def test_a_set_is_its_pinned_version_or_named() -> None:
+    from odmd_bench.data.manifests import known_originals
+    from odmd_bench.data.store import is_pinned, pin, pin_problem
+
+    v1 = pin("odmd-v1", "test", "robot")
+    good = {"content_sha256": v1["sha256"], "meta_sha256": v1["meta_sha256"]}
+    assert is_pinned("odmd-v1", {}) and pin_problem("odmd-v1", "test", "robot", dict(good)) is None
+    content = {**good, "content_sha256": "f" * 64}
+    assert pin_problem("odmd-v1", "test", "robot", content) == (
+        f"odmd-v1 test robot: content SHA-256 ffffffffffffffff... differs from the pinned {v1['sha256'][:16]}... "
+        "in splits/odmd-v1.json"
+    )
+    meta = {**good, "meta_sha256": "e" * 64}
+    assert pin_problem("odmd-v1", "test", "robot", meta) == (
+        f"odmd-v1 test robot: metadata SHA-256 eeeeeeeeeeeeeeee... differs from the pinned "
+        f"{v1['meta_sha256'][:16]}... in splits/odmd-v1.json"
+    )
+    paper = pin("odmd-paper", "test", "camera")
+    mine = {"content_sha256": paper["sha256"], "meta_sha256": paper["meta_sha256"]}
+    assert not is_pinned("odmd-paper", mine)  # no source: imported with --allow-unknown, or written
+    assert pin_problem("odmd-paper", "test", "camera", {**mine, "content_sha256": "0" * 64}) is None
+    assert not is_pinned("odmd-paper", {**mine, "source_sha256": "0" * 64})  # an unknown source
+    known = {**mine, "source_sha256": paper["source_sha256"]}
+    assert is_pinned("odmd-paper", known) and pin_problem("odmd-paper", "test", "camera", known) is None
+    other = pin("odmd-paper", "test", "robot")["source_sha256"]  # a known original, another set's
+    assert pin_problem("odmd-paper", "test", "camera", {**known, "source_sha256": other}) == (
+        f"odmd-paper test camera: the set is the conversion of {known_originals()[other]['path']}, not of "
+        "the file pinned for it in splits/odmd-paper.json"
+    )
+    assert pin_problem("odmd-paper", "test", "camera", {**known, "meta_sha256": "1" * 64}).startswith(  # type: ignore[union-attr]
+        "odmd-paper test camera: metadata SHA-256 1111111111111111... differs"
+    )
