@@ -433,3 +433,71 @@ def test_a_set_is_its_pinned_version_or_named() -> None:
     assert pin_problem("odmd-paper", "test", "camera", {**known, "meta_sha256": "1" * 64}).startswith(  # type: ignore[union-attr]
         "odmd-paper test camera: metadata SHA-256 1111111111111111... differs"
     )
+
+
+def test_the_hashes_of_a_committed_set_are_its_pins() -> None:
+    """The hash formats themselves, checked against the manifest: a change of format fails."""
+    import h5py
+
+    from odmd_bench.data.hashing import content_sha256, meta_sha256
+    from odmd_bench.data.store import pin
+
+    root = Path(__file__).resolve().parents[1]
+    with h5py.File(root / "splits" / "odmd-v1" / "robot-test.h5", "r") as h:
+        g = h["robot"]
+        arrays = {k: g[k][()] for k in g}
+        attrs = dict(g.attrs)
+    pinned = pin("odmd-v1", "test", "robot")
+    assert content_sha256(arrays) == pinned["sha256"] == attrs["content_sha256"]
+    assert meta_sha256(attrs) == pinned["meta_sha256"] == attrs["meta_sha256"]
+
+
+def test_meta_sha256_is_canonical_json() -> None:
+    import hashlib
+
+    from odmd_bench.data.hashing import meta_sha256
+
+    attrs = {"b": 1, "a": "é", "c": [1.5, True]}
+    text = '{"a":"\\u00e9","b":1,"c":[1.5,true]}'
+    assert meta_sha256(attrs) == hashlib.sha256(text.encode()).hexdigest()
+    assert meta_sha256(dict(reversed(attrs.items()))) == meta_sha256(attrs)
+
+
+def test_a_verified_read_names_both_hashes_and_the_format_version(tmp_path: Path) -> None:
+    import re
+
+    import h5py
+
+    from odmd_bench.data.hashing import content_sha256, meta_sha256
+    from odmd_bench.data.io import FORMAT_VERSION, read_set, write_sets
+
+    f = tmp_path / "x.h5"
+    write_sets(f, {"normal": odmd_bench.generate(3, rng=0)})
+    with h5py.File(f, "r+") as h:
+        h["normal/depth"][-1] += 1e-9
+        stored = h["normal"].attrs["content_sha256"]
+        actual = content_sha256({k: h["normal"][k][()] for k in h["normal"]})
+    with pytest.raises(odmd_bench.DataError) as info:
+        read_set(f, "normal")
+    said = re.search(r"(is corrupt.*?\.\.\.), the file records (\w+)\.\.\.; ", info.value.message)
+    assert said is not None, info.value.message
+    assert said.group(1) == f"is corrupt or altered: its arrays hash to {actual[:16]}..."
+    assert said.group(2) == stored[:16]
+    write_sets(f, {"normal": odmd_bench.generate(3, rng=0)})
+    with h5py.File(f, "r+") as h:
+        h["normal"].attrs["image_width"] = 641
+        attrs = dict(h["normal"].attrs)
+    with pytest.raises(odmd_bench.DataError) as info:
+        read_set(f, "normal")
+    assert (
+        f"is altered: its attributes (intrinsics, image size, identity...) hash to {meta_sha256(attrs)[:16]}..., "
+        f"the file records {attrs['meta_sha256'][:16]}...; "
+    ) in info.value.message
+    with h5py.File(f, "r+") as h:
+        h.attrs["format_version"] = FORMAT_VERSION + 1
+    with pytest.raises(odmd_bench.DataError) as info:
+        read_set(f, "normal")
+    assert (
+        f"has file format version {FORMAT_VERSION + 1}, this odmd-bench reads version {FORMAT_VERSION} "
+        "(it is stale); "
+    ) in info.value.message
