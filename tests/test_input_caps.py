@@ -63,3 +63,13 @@ def test_import_caps_a_pickle(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -
     assert r.exit_code == 2 and "Traceback" not in r.stderr and said in r.stderr
     with pytest.raises(ImportRefused, match=said):  # the command refuses a device before reading it
         read_original("/dev/zero")
+
+
+def test_reported_yaml_is_read_to_its_cap(tmp_path: Path) -> None:
+    from odmd_bench import ValidationError
+    from odmd_bench.documents import MAX_DOCUMENT_BYTES
+    from odmd_bench.leaderboard import read_reported
+
+    (tmp_path / "reported.yaml").write_bytes(b"#" * (100 * MAX_DOCUMENT_BYTES))
+    with pytest.raises(ValidationError, match=f"at most {MAX_DOCUMENT_BYTES} are read"):
+        read_reported(tmp_path)
