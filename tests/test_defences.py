@@ -355,8 +355,9 @@ def test_metrics_are_float64_and_name_every_problem() -> None:
     assert summarize(e.astype(np.float32))["mean"] != float(
         np.mean(e.astype(np.float32))
     )  # float32 would differ
-    means = {s: np.float32(v) for s, v in zip("abc", e[:3], strict=True)}
-    assert all_sets_mean(means) == float(np.mean(e[:3].astype(np.float32).astype(np.float64)))
+    means = {str(i): np.float32(v) for i, v in enumerate(e)}
+    e32 = e.astype(np.float32)
+    assert all_sets_mean(means) == float(np.mean(e32.astype(np.float64))) != float(np.mean(e32))
     with pytest.raises(UsageError) as info:
         check_depths(np.ones((2, 2)), np.ones(4))
     assert info.value.message == "cannot compute depth errors"
@@ -461,6 +462,8 @@ def test_meta_sha256_is_canonical_json() -> None:
     text = '{"a":"\\u00e9","b":1,"c":[1.5,true]}'
     assert meta_sha256(attrs) == hashlib.sha256(text.encode()).hexdigest()
     assert meta_sha256(dict(reversed(attrs.items()))) == meta_sha256(attrs)
+    odd = {"k": complex(1, 2)}  # not JSON: written as its repr
+    assert meta_sha256(odd) == hashlib.sha256(b'{"k":"(1+2j)"}').hexdigest()
 
 
 def test_a_verified_read_names_both_hashes_and_the_format_version(tmp_path: Path) -> None:
