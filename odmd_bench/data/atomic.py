@@ -156,7 +156,7 @@ _FILE_MODE = 0o666 & ~_read_umask()
 #: A temporary file's name: ``.NAME.HOST-PID.XXXX.tmp`` beside the file NAME it becomes.
 _TEMP_NAME = re.compile(r"\.(?P<name>.+)\.[A-Za-z0-9]*-[0-9]+\.[^.]+\.tmp")
 #: What the package's files and folders in the system's temporary folder start with.
-_ELSEWHERE = "odmd-bench."
+_SYSTEM_TEMP_PREFIX = "odmd-bench."
 
 
 def _temp_prefix(target: Path) -> str:
@@ -265,9 +265,9 @@ def temp_folder() -> Iterator[Path]:
     device) is removed by the next writer, as :func:`clean_stale_temps` does beside files.
     """
     base = Path(tempfile.gettempdir())
-    _clean(base, _ELSEWHERE, STALE_TEMP_SECONDS, folders=True)
+    _clean(base, _SYSTEM_TEMP_PREFIX, STALE_TEMP_SECONDS, folders=True)
     try:
-        folder = Path(tempfile.mkdtemp(prefix=f"{_ELSEWHERE}{_host()}-{os.getpid()}.", suffix=".tmp"))
+        folder = Path(tempfile.mkdtemp(prefix=f"{_SYSTEM_TEMP_PREFIX}{_host()}-{os.getpid()}.", suffix=".tmp"))
     except OSError as e:
         raise storage_error(e, base, "write into") from None
     try:
@@ -330,9 +330,9 @@ def atomic_path(path: str | os.PathLike[str], *, into_devices: bool = True) -> I
 def _temp_elsewhere() -> Path:
     """An empty temporary file in the system's temporary folder (for what goes to a device)."""
     base = Path(tempfile.gettempdir())
-    _clean(base, _ELSEWHERE, STALE_TEMP_SECONDS, folders=True)
+    _clean(base, _SYSTEM_TEMP_PREFIX, STALE_TEMP_SECONDS, folders=True)
     try:
-        fd, tmp = tempfile.mkstemp(prefix=f"{_ELSEWHERE}{_host()}-{os.getpid()}.", suffix=".tmp")
+        fd, tmp = tempfile.mkstemp(prefix=f"{_SYSTEM_TEMP_PREFIX}{_host()}-{os.getpid()}.", suffix=".tmp")
     except OSError as e:
         raise storage_error(e, base, "write into") from None
     os.close(fd)
