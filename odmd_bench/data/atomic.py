@@ -267,7 +267,9 @@ def temp_folder() -> Iterator[Path]:
     base = Path(tempfile.gettempdir())
     _clean(base, _SYSTEM_TEMP_PREFIX, STALE_TEMP_SECONDS, folders=True)
     try:
-        folder = Path(tempfile.mkdtemp(prefix=f"{_SYSTEM_TEMP_PREFIX}{_host()}-{os.getpid()}.", suffix=".tmp"))
+        folder = Path(
+            tempfile.mkdtemp(prefix=f"{_SYSTEM_TEMP_PREFIX}{_host()}-{os.getpid()}.", suffix=".tmp")
+        )
     except OSError as e:
         raise storage_error(e, base, "write into") from None
     try:
