@@ -22,6 +22,7 @@ from odmd_bench.data.store import ensure_generated, load, load_split
 from odmd_bench.errors import (
     ConfigError,
     DataError,
+    DepthRangeError,
     ImportRefused,
     MethodError,
     MissingDataError,
@@ -36,17 +37,21 @@ from odmd_bench.evaluation.parse import ParsedPredictions, parse_predictions
 from odmd_bench.evaluation.predictions import write_predictions
 from odmd_bench.evaluation.result import EvaluationResult
 from odmd_bench.evaluation.scoring import evaluate
+from odmd_bench.inputs.bounds import MAX_ABS_DEPTH, MAX_ABS_WEIGHT
 from odmd_bench.predict import predict_sequences
 from odmd_bench.predict.sequences import read_sequences
 
 __all__ = [
     "BENCHMARKS",
     "GENERATOR_VERSION",
+    "MAX_ABS_DEPTH",
+    "MAX_ABS_WEIGHT",
     "PRESETS",
     "Benchmark",
     "CameraConfig",
     "ConfigError",
     "DataError",
+    "DepthRangeError",
     "EvaluationResult",
     "Examples",
     "GeneratorConfig",

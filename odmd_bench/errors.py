@@ -111,6 +111,21 @@ class MissingDataError(StorageError, FileNotFoundError):
     """A data file that should exist does not (the message says which command makes it)."""
 
 
+class DepthRangeError(DataError):
+    """A method's depths are not finite or lie beyond the bound; ``where`` holds their indices.
+
+    Not a bug of the method: what it was given (the examples' numbers, its options, its
+    weights) makes them, and the message names those.
+    """
+
+    def __init__(self, message: str, problems: Sequence[str] = (), where: Sequence[int] = ()) -> None:
+        super().__init__(message, problems)
+        self.where = tuple(int(i) for i in where)
+
+    def __reduce__(self) -> Any:
+        return (type(self), (self.message, self.problems, self.where))
+
+
 class ImportRefused(DataError):
     """An original-release file was refused (unknown hash, hostile pickle, bad layout)."""
 

@@ -34,8 +34,10 @@ from typing import Any
 import numpy as np
 
 from odmd_bench.data.examples import Examples
-from odmd_bench.errors import MethodError, OdmdError, UsageError
+from odmd_bench.errors import DepthRangeError, MethodError, OdmdError, UsageError
 from odmd_bench.extras import is_installed, missing_module_error
+from odmd_bench.inputs.bounds import MAX_ABS_DEPTH, depth_problems
+from odmd_bench.inputs.problems import SHOWN
 
 #: The entry-point group methods are registered under.
 GROUP = "odmd_bench.methods"
@@ -85,6 +87,10 @@ class Method:
                 its promise of one finite depth per example and a report of counts.
             RuntimeError: the same from one of odmd-bench's own methods (a bug of
                 odmd-bench).
+            DepthRangeError: depths that are not finite or beyond
+                :data:`~odmd_bench.inputs.bounds.MAX_ABS_DEPTH`: what the method was given
+                (the examples' numbers, its options or weights) makes them; the message
+                names the examples and the options.
         """
         refused = [k for k in options if not self.accepts(k)]
         if refused:
@@ -108,8 +114,23 @@ class Method:
             raise broken(f"{bug} returned what is not depths and a report of counts: {_raised(e)}") from None
         if depths.shape != (len(examples),):
             raise broken(f"{bug} returned shape {depths.shape} for {len(examples)} examples")
-        if not np.isfinite(depths).all():
+        if not self.is_own and not np.isfinite(depths).all():
             raise broken(f"{bug} returned {int((~np.isfinite(depths)).sum())} non-finite depths")
+        out = depth_problems(depths)
+        if out.any():
+            where = np.flatnonzero(out)
+            given = ", ".join(f"{k}={v}" for k, v in options.items()) or "none"
+            raise DepthRangeError(
+                f"method {self.name!r} gives depths that are not finite or beyond {MAX_ABS_DEPTH:.0e} m "
+                f"for {where.size} of {len(examples)} examples",
+                [
+                    ", ".join(f"example {i}: {float(depths[i])!r}" for i in where[:SHOWN].tolist())
+                    + (", ..." if where.size > SHOWN else ""),
+                    f"what it was given makes them: the boxes and camera motion of those named, or its "
+                    f"options ({given})",
+                ],
+                where=where.tolist(),
+            )
         return depths, report
 
     @property

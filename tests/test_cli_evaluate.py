@@ -548,3 +548,35 @@ def test_the_expected_input_format_is_stated_in_help_and_docstring() -> None:
     for name, bench in BENCHMARKS.items():
         listed = f"{', '.join(bench.sets[:-1])}, {bench.sets[-1]}"
         assert listed in help_text and listed in doc, (name, listed)
+
+
+@pytest.mark.parametrize(("resamples", "confidence"), [("10", "0.95"), ("2000", "0.9999"), ("1", "0.5")])
+def test_a_gate_that_could_never_fail_is_refused(
+    data: Path, tmp_path: Path, resamples: str, confidence: str
+) -> None:
+    truth = {s: ex.depth for s, ex in odmd_bench.load_split("test", "odmd-paper").items()}
+    good = preds(tmp_path, "good.csv", scale=0.01, seed=1)
+    bad = tmp_path / "bad.csv"
+    write_predictions(bad, "test", {s: z * 1.5 for s, z in truth.items()})
+    for gate in ([], ["--fail-if-worse"]):
+        code, out, err = run(
+            "compare", str(good), str(bad), "--benchmark", "odmd-paper", "--resamples", resamples,
+            "--confidence", confidence, *gate,
+        )  # fmt: skip
+        assert code == 2 and out == "" and "Traceback" not in err
+        assert f"--resamples and --confidence: {resamples} resamples at confidence {confidence} " in err
+        assert "can never find a difference" in err and "use at least" in err
+
+
+def test_a_pass_beside_an_interval_on_the_worse_side_says_why() -> None:
+    from odmd_bench.evaluation.compare import compare_errors
+    from odmd_bench.evaluation.gates import fail_if_worse
+
+    # Five examples all worse for B: the interval lies above 0, the exact p is 0.0625.
+    a = {"normal": np.array([1.0, 2.0, 3.0, 4.0, 5.0])}
+    b = {"normal": a["normal"] + np.array([0.9, 1.0, 1.1, 1.0, 0.95])}
+    passed, lines = fail_if_worse(compare_errors(a, b, n_resamples=4000))
+    assert passed
+    assert lines[0].startswith("ok: not significantly worse on All")
+    assert "(the interval lies above 0, but the test's p = 0." in lines[0]
+    assert lines[0].endswith("is not below 0.05: worse needs both)")

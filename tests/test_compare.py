@@ -19,6 +19,9 @@ from odmd_bench.evaluation.compare import (
     compare_errors,
     compare_files,
     compare_results,
+    minimum_resamples,
+    resolution_problem,
+    smallest_p,
 )
 from odmd_bench.evaluation.predictions import write_predictions
 from odmd_bench.evaluation.scoring import evaluate
@@ -266,3 +269,24 @@ def test_compare_pairs_checks_its_input() -> None:
         compare_pairs({"a": a, "b": b}, [("a", "b")], n_resamples=0)
     with pytest.raises(UsageError, match="must cover the same sets"):
         compare_pairs({"a": a, "b": {"normal": b["normal"]}}, [("a", "b")])
+
+
+@pytest.mark.parametrize("confidence", [0.5, 0.9, 0.95, 0.99, 0.999, 0.9999, 0.987654])
+def test_settings_that_could_never_find_a_difference_are_refused(confidence: float) -> None:
+    # A difference as large as it gets: every example favours A by 9 points.
+    a = {"normal": np.linspace(1.0, 2.0, 200)}
+    b = {"normal": a["normal"] + 9.0}
+    least = minimum_resamples(confidence)
+    with pytest.raises(UsageError, match=f"can never find a difference.*use at least {least} resamples"):
+        compare_errors(a, b, n_resamples=least - 1, confidence=confidence)
+    # one resample more and the verdict follows the interval
+    d = compare_errors(a, b, n_resamples=least, confidence=confidence).sets["normal"]
+    assert d.ci_high < 0 and d.p_value < 1 - confidence and d.verdict == A_BETTER
+
+
+def test_the_smallest_p_value_is_the_floor_checked() -> None:
+    for n in (1, 9, 10, 19, 20, 99, 100, 1999):
+        for confidence in (0.9, 0.95, 0.99):
+            refused = resolution_problem(n, confidence) is not None
+            assert refused == (smallest_p(n) >= 1 - confidence)
+            assert refused == (n < minimum_resamples(confidence))

@@ -88,8 +88,23 @@ def board(built_board: Path, tmp_path: Path) -> Path:
     return root
 
 
+def _recorded_plot(root: Path) -> None:
+    """A leaderboard.png that records the current leaderboard.json (what check reads; no pixels)."""
+    import struct
+    import zlib
+
+    digest = lb.board_digest((root / lb.JSON_FILE).read_text(encoding="utf-8"))
+    text = lb.PLOT_SOURCE_KEY.encode("latin-1") + b"\0" + digest.encode()
+
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+
+    (root / lb.PLOT).write_bytes(b"\x89PNG\r\n\x1a\n" + chunk(b"tEXt", text) + chunk(b"IEND", b""))
+
+
 def _check(root: Path, data_dir: Path) -> list[str]:
-    return lb.check(root, data_dir, n_resamples=FAST)
+    """``check`` of a board built without its plot (drawing it is slow); the CLI always requires it."""
+    return lb.check(root, data_dir, n_resamples=FAST, plot=False)
 
 
 def _bump_camera_digit(path: Path, row_start: str) -> tuple[int, str, str]:
@@ -363,7 +378,19 @@ def test_plot_is_written(board: Path, v1_data_dir: Path) -> None:
 def test_two_entries_of_one_name_take_one_row(
     board: Path, v1_data_dir: Path, v1_preds: dict[str, Path], tmp_path: Path
 ) -> None:
-    _add(board, v1_data_dir, _nudged(v1_preds["expansion"], tmp_path), "expansion-2", name="EXPANSION")
+    nudged = _nudged(v1_preds["expansion"], tmp_path)
+    clash = (
+        "expansion-2/odmd-v1-test: has the name 'EXPANSION' of expansion/odmd-v1-test on odmd-v1 test; "
+        "rename one of them"
+    )
+    # add refuses the name that build would refuse, in the same words
+    with pytest.raises(ValidationError) as info:
+        _add(board, v1_data_dir, nudged, "expansion-2", name="EXPANSION")
+    assert info.value.problems == [clash]
+    assert not (board / lb.ENTRIES / "expansion-2" / "odmd-v1-test").exists()
+    # given by hand, build keeps the first and names the second
+    entry = _add(board, v1_data_dir, nudged, "expansion-2", name="Expansion 2").folder / "entry.yaml"
+    entry.write_text(entry.read_text().replace("name: Expansion 2", "name: EXPANSION"))
     boards, problems = lb.collect(board, v1_data_dir, n_resamples=FAST)
     assert problems == [
         "expansion-2/odmd-v1-test: has the name 'EXPANSION' of expansion/odmd-v1-test on odmd-v1 test; "
@@ -463,9 +490,14 @@ def test_check_finds_a_plot_left_from_another_board(board: Path, v1_data_dir: Pa
     os.mkfifo(png)  # read, it would wait for a writer forever
     (problem,) = lb.check(board, v1_data_dir, n_resamples=FAST)
     assert problem.startswith("leaderboard.png is not a regular file")
-    # No plot is not a problem: it is optional.
+    # No plot is a problem (the board is its tables, its JSON and its plot), unless not asked for.
     png.unlink()
-    assert lb.check(board, v1_data_dir, n_resamples=FAST) == []
+    (problem,) = lb.check(board, v1_data_dir, n_resamples=FAST)
+    assert problem.startswith("leaderboard.png is missing; run `odmd-bench leaderboard build`")
+    assert lb.check(board, v1_data_dir, n_resamples=FAST, plot=False) == []
+    assert any(
+        s.startswith("warning: leaderboard.png is missing") for s in lb.write(board, built, plot=False)
+    )
     lb.write(board, built)
     assert lb.check(board, v1_data_dir, n_resamples=FAST) == []
 
@@ -502,6 +534,9 @@ def test_cli_check_exits_1_on_a_difference_and_2_on_a_broken_entry_with_a_line_p
     runner = CliRunner()
     args = ["leaderboard", "check", "--root", str(board), "--data-dir", str(v1_data_dir)]
     # The fixture built with FAST resamples, and the CLI's default is patched to match.
+    missing = runner.invoke(cli, args)  # the fixture draws no plot: the CLI requires one
+    assert missing.exit_code == 2 and "leaderboard.png is missing" in missing.output
+    _recorded_plot(board)
     ok = runner.invoke(cli, args)
     assert ok.exit_code == 0, ok.output
     assert ok.stdout.startswith("leaderboard check passed: ")
@@ -632,6 +667,7 @@ def test_cli_add_makes_an_entry_that_build_ranks(
     stale = runner.invoke(cli, ["leaderboard", "check", *common])
     assert stale.exit_code == 1 and "build writes '| 2 | [Exp 2](entries/exp2/odmd-v1-test/)" in stale.output
     assert runner.invoke(cli, ["leaderboard", "build", "--no-plot", *common]).exit_code == 0
+    _recorded_plot(board)
     assert runner.invoke(cli, ["leaderboard", "check", *common]).exit_code == 0
 
 
@@ -788,3 +824,39 @@ def test_board_data_is_rebuilt_where_stale(tmp_path: Path, original_release: Pat
         assert {s: ex.attrs["content_sha256"] for s, ex in again.items()} == {
             s: ex.attrs["content_sha256"] for s, ex in first.items()
         }
+
+
+def test_a_hard_link_in_an_entry_is_refused_unread(board: Path, v1_data_dir: Path, tmp_path: Path) -> None:
+    secret = tmp_path / "secret.txt"
+    secret.write_text("first line of another file\n")
+    meta = board / lb.ENTRIES / "box-ls" / "odmd-v1-test" / "entry.yaml"
+    meta.unlink()
+    os.link(secret, meta)  # not a symbolic link: a second name for the same file
+    problems = _check(board, v1_data_dir)
+    assert problems[:1] == [
+        "entry box-ls/odmd-v1-test: only plain files are allowed: box-ls/odmd-v1-test/entry.yaml has 2 "
+        "hard links; an entry holds files of its own (a hard link is another file's content under a "
+        "second name): copy it instead"
+    ]
+    assert not any("first line" in p for p in problems)
+    meta.unlink()
+    os.mkfifo(meta)  # read, it would wait for a writer forever
+    assert "entry.yaml is not a regular file" in _check(board, v1_data_dir)[0]
+
+
+def test_check_reads_predictions_exactly_as_evaluate_does(board: Path, v1_data_dir: Path) -> None:
+    """A file gzipped twice: evaluate refuses it, and so do check and add (the score would be right)."""
+    import gzip
+
+    from odmd_bench.evaluation.scoring import evaluate
+
+    preds = board / lb.ENTRIES / "box-ls" / "odmd-v1-test" / "predictions.csv.gz"
+    twice = gzip.compress(preds.read_bytes())
+    with pytest.raises(ValidationError) as by_evaluate:
+        evaluate(twice, benchmark="odmd-v1", data_dir=v1_data_dir)
+    preds.write_bytes(twice)
+    problems = _check(board, v1_data_dir)
+    assert problems and problems[0].startswith(
+        "entry box-ls/odmd-v1-test: predictions.csv.gz fails validation"
+    )
+    assert by_evaluate.value.problems[0] in problems[0]

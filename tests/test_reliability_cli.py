@@ -150,3 +150,48 @@ def test_a_removed_current_folder_is_named_as_such(tmp_path: Path) -> None:
     assert done.returncode == 2, done.stderr
     assert "error: the current folder no longer exists (it was removed)" in done.stderr
     assert "Traceback" not in done.stderr
+
+
+def test_a_closed_pipe_is_141_however_large_the_output(tmp_path: Path) -> None:
+    """Python's buffered stdout takes a partial write without an error: the rest was dropped, status 0."""
+    import os
+
+    from odmd_bench.data.generator import generate
+    from odmd_bench.data.io import write_sets
+    from odmd_bench.data.registry import set_file
+
+    data = tmp_path / "data"
+    sets = {s: generate(1500, rng=i) for i, s in enumerate(("normal", "camera", "object", "robot"))}
+    write_sets(set_file("odmd-paper", "test", data), sets)
+    env = {**os.environ, "ODMD_BENCH_DATA": str(data)}
+    preds = tmp_path / "p.csv"
+    run = [sys.executable, "-m", "odmd_bench"]
+    subprocess.run(
+        [*run, "baseline", "box-ls", "--benchmark", "odmd-paper", "-o", str(preds)],
+        env=env,
+        check=True,
+        capture_output=True,
+    )
+    for args in (
+        ["baseline", "box-ls", "--benchmark", "odmd-paper", "-o", "-"],
+        [
+            "evaluate",
+            str(preds),
+            "--benchmark",
+            "odmd-paper",
+            "-o",
+            str(tmp_path / "r.txt"),
+            "--per-example",
+            "-",
+        ],
+    ):
+        whole = subprocess.run([*run, *args], env=env, capture_output=True, check=False)
+        assert whole.returncode == 0 and len(whole.stdout) > 200_000  # more than a pipe holds
+        proc = subprocess.Popen([*run, *args], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+        assert proc.stdout is not None and proc.stderr is not None
+        assert proc.stdout.read(10) == whole.stdout[:10]
+        proc.stdout.close()  # as `| head -c 10` does: the reader leaves mid-output
+        err = proc.stderr.read().decode()
+        proc.stderr.close()
+        assert proc.wait() == EXIT_BROKEN_PIPE, (args, err)
+        assert "Traceback" not in err and "Exception ignored" not in err

@@ -24,7 +24,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import odmd_bench
-from odmd_bench.data.atomic import clean_stale_temps, locked
+from odmd_bench.data.atomic import atomic_path, clean_stale_temps, locked
 from odmd_bench.data.hashing import content_sha256, meta_sha256
 from odmd_bench.data.io import read_set, write_sets
 from odmd_bench.data.registry import set_file
@@ -758,3 +758,57 @@ def test_a_damaged_pinned_manifest_is_named_not_a_traceback(
         assert r.exit_code == 2 and "is damaged; reinstall odmd-bench" in r.output, r.output
     finally:
         manifests.read_manifest.cache_clear()
+
+
+def test_a_killed_nested_writer_leaves_nothing_that_the_next_writer_keeps(tmp_path: Path) -> None:
+    """The plot is written through a temporary file of the board's; both are the target's, however nested."""
+    target = tmp_path / "leaderboard.png"
+    script = textwrap.dedent(
+        """
+        import sys, time
+        from odmd_bench.data.atomic import atomic_path
+        with atomic_path(sys.argv[1]) as outer, atomic_path(outer) as inner:
+            outer.write_bytes(b"x")
+            inner.write_bytes(b"half")
+            print(outer, inner, sep="\\n", flush=True)
+            time.sleep(3600)
+        """
+    )
+    child = subprocess.Popen([sys.executable, "-c", script, str(target)], stdout=subprocess.PIPE, text=True)
+    assert child.stdout is not None
+    outer, inner = Path(child.stdout.readline().strip()), Path(child.stdout.readline().strip())
+    child.send_signal(signal.SIGKILL)
+    child.wait()
+    child.stdout.close()
+    assert outer.exists() and inner.exists() and inner.name.startswith(".leaderboard.png.")
+    from odmd_bench.data.atomic import _host
+
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    older = tmp_path / f"..leaderboard.png.{_host()}-{dead.pid}.ab12.tmp.{_host()}-{dead.pid}.cd34.tmp"
+    older.write_bytes(b"as 0.1.0 named a nested temporary file")
+    with atomic_path(target) as tmp:
+        tmp.write_bytes(b"new")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["leaderboard.png"]
+
+
+def test_temporary_files_elsewhere_are_removed_by_the_next_writer(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A device's output goes through the system's temporary folder, as leaderboard add's staging."""
+    import tempfile
+
+    from odmd_bench.data.atomic import _host, temp_folder
+
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    left_file = tmp_path / f"odmd-bench.{_host()}-{dead.pid}.ab12.tmp"
+    left_file.write_text("x")
+    left_folder = tmp_path / f"odmd-bench.{_host()}-{dead.pid}.cd34.tmp"
+    (left_folder / "m" / "odmd-v1-test").mkdir(parents=True)
+    live = tmp_path / f"odmd-bench.{_host()}-{os.getppid()}.ef56.tmp"
+    live.write_text("a live writer's")
+    with temp_folder() as mine:
+        assert mine.is_dir() and mine.parent == tmp_path
+    assert sorted(p.name for p in tmp_path.iterdir()) == [live.name]

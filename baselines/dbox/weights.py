@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from odmd_bench import DataError, Examples, UsageError, known_originals
+from odmd_bench import MAX_ABS_WEIGHT, DataError, Examples, UsageError, known_originals
 
 if TYPE_CHECKING:
     from odmd_bench_baselines.dbox.model import DBox
@@ -354,6 +354,11 @@ def check_state_dict(state: Any, where: str = "checkpoint") -> None:
             problems.append(f"{key}: expected floating point values, got {value.dtype}")
         elif not bool(torch.isfinite(value).all()):
             problems.append(f"{key}: contains NaN or infinite values")
+        elif value.numel() and float(value.abs().max()) > MAX_ABS_WEIGHT:
+            problems.append(
+                f"{key}: holds values up to {float(value.abs().max()):.3g}, beyond {MAX_ABS_WEIGHT:g} "
+                "(the bound on a weight; trained DBox weights stay below 10)"
+            )
     if problems:
         raise DataError(f"{where} is not a DBox checkpoint in the original layout", problems)
 

@@ -216,11 +216,14 @@ def compare_command(
     not distinguishable). Both files are validated as by `evaluate`; either may be -
     (stdin). In CI, A is the committed baseline and B the candidate: --fail-if-worse.
     """
-    from odmd_bench.evaluation.compare import compare_files
+    from odmd_bench.evaluation.compare import compare_files, resolution_problem
     from odmd_bench.evaluation.report import format_comparison
 
     if str(a) == "-" and str(b) == "-":
         raise UsageError("A and B cannot both be read from stdin (-)")
+    unable = resolution_problem(resamples, confidence)  # before scoring, so that it fails fast
+    if unable is not None:
+        raise UsageError(f"--resamples and --confidence: {unable}")
     _refuse_overwrite({"--output": output}, [a, b], data_dir)
     (src_a, name_a), (src_b, name_b) = _source(a), _source(b)
     c, ra, rb = compare_files(

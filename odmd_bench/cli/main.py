@@ -7,11 +7,15 @@ usage errors exit 2; anything else is a bug and exits 1. When the command was gi
 ``--format json``, errors are printed to stderr as one JSON object
 ``{"error": ..., "problems": [...]}``. A reader that closes the pipe early
 (``odmd-bench info FILE | head -1``) ends the command quietly, with status 141
-(128 + SIGPIPE, as a shell reports a command killed by SIGPIPE).
+(128 + SIGPIPE, as a shell reports a command killed by SIGPIPE), whatever the command
+and however large its output: standard output writes every byte or fails
+(:class:`_WholeWrites`), since Python's own buffered stdout returns from a write the pipe
+took only part of without an error, and the rest would be dropped with status 0.
 """
 
 from __future__ import annotations
 
+import io
 import json
 import os
 import sys
@@ -25,6 +29,47 @@ from odmd_bench.errors import OdmdError, UsageError
 
 #: Exit status when stdout is closed by its reader.
 EXIT_BROKEN_PIPE = 141
+
+
+class _WholeWrites(io.RawIOBase):
+    """A file descriptor whose ``write`` writes every byte, or raises (``BrokenPipeError``)."""
+
+    def __init__(self, fd: int) -> None:
+        super().__init__()
+        self._fd = fd
+
+    def writable(self) -> bool:
+        return True
+
+    def fileno(self) -> int:
+        return self._fd
+
+    def isatty(self) -> bool:
+        return os.isatty(self._fd)
+
+    def write(self, b: Any) -> int:
+        view = memoryview(b).cast("B")
+        total = len(view)
+        while view:
+            view = view[os.write(self._fd, view) :]
+        return total
+
+
+def whole_stdout() -> None:
+    """Make ``sys.stdout`` write every byte or raise, keeping its encoding (see the module docstring)."""
+    out = sys.stdout
+    try:
+        fd = out.fileno()
+        out.flush()
+    except (AttributeError, OSError, ValueError):  # none, or not a real file (tests)
+        return
+    sys.stdout = io.TextIOWrapper(
+        _WholeWrites(fd),
+        encoding=out.encoding,
+        errors=out.errors,
+        line_buffering=bool(getattr(out, "line_buffering", False)),
+        write_through=True,
+    )
 
 
 def _wants_json(args: list[str]) -> bool:
@@ -172,6 +217,7 @@ def main() -> None:
     """Run the command line (the ``odmd-bench`` script and ``python -m odmd_bench``)."""
     code: int | str | None = 0
     try:
+        whole_stdout()
         cli.main(prog_name="odmd-bench")
     except SystemExit as e:
         code = e.code

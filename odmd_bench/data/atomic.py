@@ -152,8 +152,20 @@ def _read_umask() -> int:
 _FILE_MODE = 0o666 & ~_read_umask()
 
 
+#: A temporary file's name: ``.NAME.HOST-PID.XXXX.tmp`` beside the file NAME it becomes.
+_TEMP_NAME = re.compile(r"\.(?P<name>.+)\.[A-Za-z0-9]*-[0-9]+\.[^.]+\.tmp")
+#: What the package's files and folders in the system's temporary folder start with.
+_SYSTEM_TEMP_PREFIX = "odmd-bench."
+
+
 def _temp_prefix(target: Path) -> str:
-    return f".{target.name}."
+    # A temporary file written through a temporary file of its own (the plot's figure into
+    # the board's temporary file, say) is named for the final target, so that the next
+    # writer of that target finds it too.
+    name = target.name
+    while (nested := _TEMP_NAME.fullmatch(name)) is not None:
+        name = nested.group("name")
+    return f".{name}."
 
 
 def _host() -> str:
@@ -205,9 +217,15 @@ def clean_stale_temps(target: str | os.PathLike[str], max_age: float = STALE_TEM
     """
     target = Path(target)
     prefix = _temp_prefix(target)
+    # "." + prefix: a temporary file's own temporary file as versions before 0.1.1 named it
+    return _clean(target.parent, prefix, max_age) + _clean(target.parent, "." + prefix, max_age)
+
+
+def _clean(folder: Path, prefix: str, max_age: float, *, folders: bool = False) -> list[Path]:
+    """Remove ``PREFIX HOST-PID.XXXX.tmp`` files (and with ``folders``, folders) of dead writers in ``folder``."""
     removed: list[Path] = []
     try:
-        entries = list(target.parent.iterdir())
+        entries = list(folder.iterdir())
     except OSError:
         return removed
     now = time.time()
@@ -221,7 +239,8 @@ def clean_stale_temps(target: str | os.PathLike[str], max_age: float = STALE_TEM
             st = p.lstat()
         except OSError:
             continue
-        if not p.is_file() or p.is_symlink():
+        is_folder = stat.S_ISDIR(st.st_mode)
+        if not (stat.S_ISREG(st.st_mode) or (folders and is_folder)):
             continue
         if host == _host() and pid_text.isdigit():  # written here: the process decides
             stale = int(pid_text) != os.getpid() and not _pid_alive(int(pid_text))
@@ -229,9 +248,33 @@ def clean_stale_temps(target: str | os.PathLike[str], max_age: float = STALE_TEM
             stale = now - st.st_mtime > max_age
         if stale:
             with contextlib.suppress(OSError):
-                p.unlink()
+                if is_folder:
+                    shutil.rmtree(p)
+                else:
+                    p.unlink()
                 removed.append(p)
     return removed
+
+
+@contextlib.contextmanager
+def temp_folder() -> Iterator[Path]:
+    """A new folder in the system's temporary folder, removed on exit.
+
+    A killed writer's folder (and a killed writer's file of :func:`atomic_paths` for a
+    device) is removed by the next writer, as :func:`clean_stale_temps` does beside files.
+    """
+    base = Path(tempfile.gettempdir())
+    _clean(base, _SYSTEM_TEMP_PREFIX, STALE_TEMP_SECONDS, folders=True)
+    try:
+        folder = Path(
+            tempfile.mkdtemp(prefix=f"{_SYSTEM_TEMP_PREFIX}{_host()}-{os.getpid()}.", suffix=".tmp")
+        )
+    except OSError as e:
+        raise storage_error(e, base, "write into") from None
+    try:
+        yield folder
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
 
 
 def write_target(path: str | os.PathLike[str], *, into_devices: bool = True) -> tuple[Path, bool]:
@@ -287,10 +330,12 @@ def atomic_path(path: str | os.PathLike[str], *, into_devices: bool = True) -> I
 
 def _temp_elsewhere() -> Path:
     """An empty temporary file in the system's temporary folder (for what goes to a device)."""
+    base = Path(tempfile.gettempdir())
+    _clean(base, _SYSTEM_TEMP_PREFIX, STALE_TEMP_SECONDS, folders=True)
     try:
-        fd, tmp = tempfile.mkstemp(suffix=".tmp")
+        fd, tmp = tempfile.mkstemp(prefix=f"{_SYSTEM_TEMP_PREFIX}{_host()}-{os.getpid()}.", suffix=".tmp")
     except OSError as e:
-        raise storage_error(e, tempfile.gettempdir(), "write into") from None
+        raise storage_error(e, base, "write into") from None
     os.close(fd)
     return Path(tmp)
 
@@ -479,6 +524,7 @@ __all__ = [
     "atomic_texts",
     "atomic_write",
     "clean_stale_temps",
+    "temp_folder",
     "ensure_folder",
     "is_os_failure",
     "locked",

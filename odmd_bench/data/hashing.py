@@ -28,6 +28,9 @@ CORE_ARRAYS = ("boxes", "detected", "camera", "depth")
 #: Group attributes that are not covered by ``meta_sha256`` (the two hashes).
 HASH_ATTRS = ("content_sha256", "meta_sha256")
 
+#: The separators of the canonical JSON both hashes write: no whitespace.
+_COMPACT = (",", ":")
+
 
 def set_arrays(ex: Examples) -> dict[str, np.ndarray]:
     """All arrays of a set by their name in the file."""
@@ -50,9 +53,9 @@ def content_sha256(arrays: Mapping[str, np.ndarray]) -> str:
     h = hashlib.sha256()
     for name in sorted(arrays):
         a = np.asarray(arrays[name])
-        dt = a.dtype.newbyteorder("<") if a.dtype.byteorder == ">" else a.dtype
+        dt = a.dtype.newbyteorder("<")  # native ("="), big-endian (">") or none ("|"): little-endian
         a = np.ascontiguousarray(a, dtype=dt)
-        header = json.dumps([name, dt.str, list(a.shape)], separators=(",", ":"))
+        header = json.dumps([name, dt.str, list(a.shape)], separators=_COMPACT)
         h.update(header.encode() + b"\n")
         h.update(a.tobytes())
     return h.hexdigest()
@@ -80,12 +83,13 @@ def meta_sha256(attrs: Mapping[str, Any]) -> str:
     """SHA-256 of a set's attributes other than its two hashes, as canonical JSON.
 
     The JSON object has sorted keys, plain Python values (what reading the file
-    back gives: ``int``, ``float``, ``bool``, ``str``) and no whitespace. Float
-    values are written exactly (shortest round-trip form), so ``fx = 205.5`` and
-    ``fx = 205.50000000000003`` hash differently.
+    back gives: ``int``, ``float``, ``bool``, ``str``), no whitespace, and ASCII only
+    (other characters escaped, as JSON does). Float values are written exactly
+    (shortest round-trip form), so ``fx = 205.5`` and ``fx = 205.50000000000003`` hash
+    differently.
     """
     body = {k: plain_value(v) for k, v in attrs.items() if k not in HASH_ATTRS}
-    text = json.dumps(body, sort_keys=True, separators=(",", ":"), ensure_ascii=True, default=repr)
+    text = json.dumps(body, sort_keys=True, separators=_COMPACT, default=repr)  # ASCII: json's default
     return hashlib.sha256(text.encode()).hexdigest()
 
 

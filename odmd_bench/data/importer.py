@@ -32,6 +32,7 @@ from odmd_bench.data.manifests import known_originals
 from odmd_bench.data.registry import Benchmark, get_benchmark, set_file
 from odmd_bench.data.store import pin_problem, read_checked
 from odmd_bench.errors import DataError, ImportRefused, StorageError, show_value
+from odmd_bench.inputs.source import MAX_ORIGINAL_BYTES, cap_advice, input_limit
 
 log = logging.getLogger("odmd_bench")
 
@@ -230,12 +231,23 @@ def convert(obj: Any, origin: str, target: Target) -> Examples:
 
 
 def read_original(path: str | os.PathLike[str], *, allow_unknown: bool = False) -> Examples:
-    """Read one original ``.pk`` file, checking its hash against the pinned list."""
+    """Read one original ``.pk`` file, checking its hash against the pinned list.
+
+    At most :data:`~odmd_bench.inputs.source.MAX_ORIGINAL_BYTES` (64 MiB) are read;
+    ``ODMD_BENCH_MAX_INPUT_MIB`` sets another cap.
+    """
     p = Path(path)
+    limit = input_limit(MAX_ORIGINAL_BYTES)
     try:
-        data = p.read_bytes()
+        with p.open("rb") as fh:  # at most the cap plus one byte: /dev/zero ends too
+            data = fh.read(limit + 1)
     except OSError as e:
         raise ImportRefused(f"{p}: cannot read ({e.strerror})") from None
+    if len(data) > limit:
+        raise ImportRefused(
+            f"{p}: larger than {limit / 2**20:g} MiB, {cap_advice('an original release file')} "
+            "(the release's largest file is 2.6 MB)"
+        )
     import hashlib
 
     digest = hashlib.sha256(data).hexdigest()

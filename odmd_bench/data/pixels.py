@@ -22,6 +22,14 @@ from typing import Any
 import numpy as np
 
 from odmd_bench.errors import DataError, UsageError
+from odmd_bench.inputs.bounds import (
+    MAX_ABS_DEPTH,
+    MAX_PIXELS,
+    MIN_PIXELS,
+    MIN_TRUE_DEPTH,
+    option_problems,
+    outside,
+)
 from odmd_bench.inputs.problems import SHOWN
 
 
@@ -29,13 +37,17 @@ def image_size_of(image_size: Sequence[float]) -> tuple[float, float]:
     """``(width, height)`` as floats, checked.
 
     Raises:
-        UsageError: not two finite numbers > 0.
+        UsageError: not two finite numbers from :data:`~odmd_bench.inputs.bounds.MIN_PIXELS`
+            to :data:`~odmd_bench.inputs.bounds.MAX_PIXELS`.
     """
     size = tuple(float(v) for v in image_size)
     if len(size) != 2 or not all(np.isfinite(v) and v > 0 for v in size):
         raise UsageError(
             f"image size must be two positive numbers (width, height) in pixels, got {image_size}"
         )
+    out = option_problems("image size", size, MIN_PIXELS, MAX_PIXELS, "pixels")
+    if out:
+        raise UsageError("image size (width, height) out of range", out)
     return size[0], size[1]
 
 
@@ -43,7 +55,9 @@ def intrinsics_of(intrinsics: Sequence[float] | None) -> tuple[float, float, flo
     """``(fx, fy, cx, cy)`` as floats, checked; None stays None.
 
     Raises:
-        UsageError: not four finite numbers, or ``fx`` or ``fy`` not > 0.
+        UsageError: not four finite numbers, or ``fx`` or ``fy`` not > 0, or out of the
+            bounds (:mod:`odmd_bench.inputs.bounds`: ``fx``, ``fy`` from ``MIN_PIXELS`` to
+            ``MAX_PIXELS``, ``|cx|``, ``|cy|`` at most ``MAX_PIXELS``).
     """
     if intrinsics is None:
         return None
@@ -52,6 +66,10 @@ def intrinsics_of(intrinsics: Sequence[float] | None) -> tuple[float, float, flo
         raise UsageError(
             f"intrinsics must be four finite numbers fx fy cx cy in pixels, fx and fy > 0; got {intrinsics}"
         )
+    out = option_problems("intrinsics fx fy", k[:2], MIN_PIXELS, MAX_PIXELS, "pixels")
+    out += option_problems("intrinsics cx cy", k[2:], -MAX_PIXELS, MAX_PIXELS, "pixels")
+    if out:
+        raise UsageError("intrinsics (fx, fy, cx, cy) out of range", out)
     return k[0], k[1], k[2], k[3]
 
 
@@ -199,6 +217,19 @@ def pixel_fields(
             )
         if np.isinf(d).any() or (d <= 0).any():
             problems.append(f"known depth not finite and > 0: {_where(np.isinf(d) | (d <= 0))}")
+    far = outside(c, -MAX_PIXELS, MAX_PIXELS).any(axis=2)
+    if far.any():
+        problems.append(f"box corner beyond {MAX_PIXELS:g} pixels: {_where(far, 'observation')}")
+    far = outside(cam, -MAX_ABS_DEPTH, MAX_ABS_DEPTH).any(axis=2)
+    if far.any():
+        problems.append(f"camera position beyond {MAX_ABS_DEPTH:g} m: {_where(far, 'observation')}")
+    for name, values in (("known depth", d), ("observation depth", od)):
+        if values is None:
+            continue
+        with np.errstate(invalid="ignore"):
+            far = outside(values, MIN_TRUE_DEPTH, MAX_ABS_DEPTH) & (values > 0)  # <= 0: named above
+        if far.any():
+            problems.append(f"{name} outside {MIN_TRUE_DEPTH:g} to {MAX_ABS_DEPTH:g} m: {_where(far)}")
     if problems:
         raise DataError("cannot convert pixel boxes", problems)
     boxes, detected = corners_to_boxes(c, (width, height))

@@ -14,7 +14,10 @@ so the comparison works on per-example differences ``d_i = e_A,i - e_B,i``:
   flipping within every set). ``p = (1 + #{|T*| >= |T|}) / (1 + resamples)``.
 
 The verdict is "A better" or "B better" only when the interval excludes 0 *and*
-``p < 1 - confidence``; otherwise "not distinguishable". Every set draws from its own
+``p < 1 - confidence``; otherwise "not distinguishable". The test's smallest p-value is
+``1 / (1 + resamples)``: settings where that is not below ``1 - confidence`` could never
+find a difference, however large, so they are refused (:func:`resolution_problem`)
+rather than answered "not distinguishable" beside an interval far from 0. Every set draws from its own
 random stream, made from ``seed`` and the set's name, so a set's result does not depend
 on which other sets are compared, and the same call gives the same numbers everywhere.
 The leaderboard forms its rank groups with :class:`Resampled`: the comparison of
@@ -46,6 +49,53 @@ _CHUNK = 250
 _BLOCK_BYTES = 64 * 2**20
 #: The most resamples a comparison draws (p-values to 1e-6; two float64 arrays of 8 MB).
 MAX_RESAMPLES = 1_000_000
+
+
+def smallest_p(n_resamples: int) -> float:
+    """The smallest p-value the sign-flip test can give with ``n_resamples`` flips."""
+    return 1 / (1 + n_resamples)
+
+
+def minimum_resamples(confidence: float) -> int:
+    """The fewest resamples whose smallest p-value is below ``1 - confidence`` (the test's threshold).
+
+    Examples:
+        >>> minimum_resamples(0.95), minimum_resamples(0.99), minimum_resamples(0.9999)
+        (19, 99, 10000)
+    """
+    alpha = 1.0 - confidence
+    n = max(1, int(1 / alpha) - 1)
+    while smallest_p(n) >= alpha:  # the same comparison as the verdict's, float for float
+        n += 1
+    while n > 1 and smallest_p(n - 1) < alpha:
+        n -= 1
+    return n
+
+
+def resolution_problem(n_resamples: int, confidence: float) -> str | None:
+    r"""Why a comparison with these settings could never find a difference (None: it can).
+
+    The verdict needs ``p < 1 - confidence`` and ``p`` is at least ``1 / (1 + n_resamples)``:
+    when that floor is not below the threshold, every verdict would be "not distinguishable"
+    whatever the interval says, and a gate resting on it could never fail.
+
+    Examples:
+        >>> resolution_problem(2000, 0.95) is None
+        True
+        >>> print(resolution_problem(10, 0.95).replace(": ", ":\n").replace("; ", ";\n"))
+        10 resamples at confidence 0.95 can never find a difference:
+        the test's smallest p-value, 1/(1 + 10) = 0.0909, is not below 1 - confidence = 0.05;
+        use at least 19 resamples or a lower confidence
+    """
+    alpha = 1.0 - confidence
+    if smallest_p(n_resamples) < alpha:
+        return None
+    return (
+        f"{n_resamples} resamples at confidence {confidence:g} can never find a difference: the test's "
+        f"smallest p-value, 1/(1 + {n_resamples}) = {smallest_p(n_resamples):.3g}, is not below "
+        f"1 - confidence = {alpha:.3g}; use at least {minimum_resamples(confidence)} resamples or a "
+        "lower confidence"
+    )
 
 
 @dataclass(frozen=True)
@@ -188,7 +238,8 @@ def compare_errors(
 
     Raises:
         UsageError: If the sets differ, an array is empty, not 1-D, of another shape or
-            not finite, or ``n_resamples`` or ``confidence`` is out of range.
+            not finite, ``n_resamples`` or ``confidence`` is out of range, or together
+            they could never find a difference (:func:`resolution_problem`).
 
     Example:
         >>> import numpy as np
@@ -226,6 +277,9 @@ def _check_settings(sets: Mapping[str, Any], n_resamples: int, seed: int, confid
         raise UsageError(f"seed must be >= 0, got {seed}")
     if not 0 < confidence < 1:
         raise UsageError(f"confidence must be between 0 and 1, got {confidence}")
+    unable = resolution_problem(n_resamples, confidence)
+    if unable is not None:
+        raise UsageError(unable)
 
 
 def _errors(s: str, *arrays: Any) -> list[np.ndarray]:

@@ -51,6 +51,20 @@ def _because(name: str, d: PairedDifference, confidence: float) -> str:
     )
 
 
+def _unless(d: PairedDifference, confidence: float) -> str:
+    """Why a pass stands beside an interval that lies wholly on the worse side (empty otherwise).
+
+    The verdict needs the interval *and* the test; when only the interval says worse, the
+    line says so, so that "ok" never reads as what the interval beside it contradicts.
+    """
+    if d.ci_high < 0 and d.verdict != A_BETTER:
+        return (
+            f" (the interval lies above 0, but the test's p = {d.p_value:.4f} is not below "
+            f"{1 - confidence:.2g}: worse needs both)"
+        )
+    return ""
+
+
 def fail_if_worse(c: Comparison, sets: Sequence[str] = ()) -> tuple[bool, list[str]]:
     """Whether the candidate (B) is not significantly worse than the baseline (A).
 
@@ -76,7 +90,7 @@ def fail_if_worse(c: Comparison, sets: Sequence[str] = ()) -> tuple[bool, list[s
         f"fail: the candidate is significantly worse on {_because(n, d, c.confidence)}" for n, d in worse
     ]
     lines += [
-        f"ok: not significantly worse on {_because(n, d, c.confidence)}"
+        f"ok: not significantly worse on {_because(n, d, c.confidence)}{_unless(d, c.confidence)}"
         for n, d in targets
         if d.verdict != A_BETTER
     ]

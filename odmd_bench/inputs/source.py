@@ -8,7 +8,11 @@ reading at most the cap plus one byte. gzip is recognised by its magic bytes, wh
 the name, so ``.csv.gz`` files and compressed stdin are read alike.
 
 The sequences reader (:func:`odmd_bench.predict.sequences.read_sequences`) reads its files
-here too, uncapped and under its own title.
+here too, under its own title and cap (:data:`MAX_SEQUENCES_BYTES`), and the importer
+caps an original release file (:data:`MAX_ORIGINAL_BYTES`). Those two may legitimately be
+larger: the environment variable ``ODMD_BENCH_MAX_INPUT_MIB`` (:data:`LIMIT_ENV`) sets
+both caps, in MiB (:func:`input_limit`). A predictions file's size is fixed by its
+benchmark, so its cap is not.
 """
 
 from __future__ import annotations
@@ -26,6 +30,38 @@ from odmd_bench.errors import UsageError, ValidationError
 
 #: The largest predictions file read, before or after gzip decompression (bytes).
 MAX_PREDICTIONS_BYTES = 64 * 2**20
+#: The largest sequences file ``predict`` reads by default, before or after gzip (bytes):
+#: about 3 million observations.
+MAX_SEQUENCES_BYTES = 256 * 2**20
+#: The largest original release file ``import`` reads by default (bytes; the release's
+#: largest is 2.6 MB).
+MAX_ORIGINAL_BYTES = 64 * 2**20
+#: The environment variable that sets the caps of the sequences and original files, in MiB.
+LIMIT_ENV = "ODMD_BENCH_MAX_INPUT_MIB"
+
+
+def input_limit(default: int) -> int:
+    """The cap in bytes: :data:`LIMIT_ENV` (MiB) where it is set, else ``default``.
+
+    Raises:
+        UsageError: the variable is set but not a number > 0.
+    """
+    value = os.environ.get(LIMIT_ENV, "").strip()
+    if not value:
+        return default
+    try:
+        mib = float(value)
+    except ValueError:
+        mib = float("nan")
+    if not (0 < mib <= 2**30):  # NaN too
+        raise UsageError(f"{LIMIT_ENV} must be a size in MiB, a number > 0 (up to 2**30), got {value!r}")
+    return int(mib * 2**20)
+
+
+def cap_advice(what: str) -> str:
+    """The cap on ``what`` (e.g. "a sequences file") and how to read a larger one, for messages."""
+    return f"the cap on {what}; set {LIMIT_ENV}=SIZE (in MiB) to read a larger one"
+
 
 #: What :func:`read_source` (and so :func:`~odmd_bench.evaluation.parse.parse_predictions`) reads.
 Source: TypeAlias = bytes | bytearray | memoryview | str | os.PathLike[str] | BinaryIO
@@ -33,19 +69,21 @@ Source: TypeAlias = bytes | bytearray | memoryview | str | os.PathLike[str] | Bi
 _GZIP_MAGIC = b"\x1f\x8b"
 
 
-def _too_large(what: str, limit: int) -> str:
-    return (
-        f"{what} is larger than {limit / 2**20:g} MiB, the cap on a predictions file "
-        "(the largest benchmark needs about 0.5 MB); is it the right file?"
-    )
+_PREDICTIONS_ADVICE = (
+    "the cap on a predictions file (the largest benchmark needs about 0.5 MB); is it the right file?"
+)
 
 
-def _read_path(path: Path, title: str, kind: str, limit: int | None) -> bytes:
+def _too_large(what: str, limit: int, advice: str = _PREDICTIONS_ADVICE) -> str:
+    return f"{what} is larger than {limit / 2**20:g} MiB, {advice}"
+
+
+def _read_path(path: Path, title: str, kind: str, limit: int | None, advice: str) -> bytes:
     try:
         with path.open("rb") as fh:
             info = os.fstat(fh.fileno())
             if limit is not None and stat.S_ISREG(info.st_mode) and info.st_size > limit:
-                raise ValidationError(title, [_too_large("the file", limit)])
+                raise ValidationError(title, [_too_large("the file", limit, advice)])
             return fh.read(-1 if limit is None else limit + 1)
     except FileNotFoundError:
         raise ValidationError(title, [f"no such file: {path}"]) from None
@@ -65,14 +103,14 @@ def _read_stream(stream: BinaryIO, name: str, title: str, kind: str, limit: int 
     return data
 
 
-def _gunzip(data: bytes, title: str, limit: int | None) -> bytes:
+def _gunzip(data: bytes, title: str, limit: int | None, advice: str) -> bytes:
     try:
         with gzip.GzipFile(fileobj=io.BytesIO(data)) as fh:
             plain = fh.read(-1 if limit is None else limit + 1)
     except (OSError, EOFError, zlib.error) as e:
         raise ValidationError(title, [f"not a readable gzip file ({e})"]) from None
     if limit is not None and len(plain) > limit:
-        raise ValidationError(title, [_too_large("the decompressed file", limit)])
+        raise ValidationError(title, [_too_large("the decompressed file", limit, advice)])
     return plain
 
 
@@ -91,6 +129,7 @@ def read_source(
     limit: int | None = MAX_PREDICTIONS_BYTES,
     title: str = "{name} cannot be scored",
     kind: str = "predictions",
+    advice: str = _PREDICTIONS_ADVICE,
 ) -> tuple[bytes, str]:
     """The CSV bytes of ``source`` and the name to report it by.
 
@@ -102,6 +141,8 @@ def read_source(
         limit: the cap in bytes, before and after decompression; None: no cap.
         title: the title of every error, ``{name}`` standing for the name.
         kind: what the file holds, in messages (``"a folder, not a KIND CSV file"``).
+        advice: what a message over the cap says after the cap (what the cap is, and how
+            to read a larger file where one can).
 
     Returns:
         ``(data, name)``.
@@ -116,7 +157,7 @@ def read_source(
         what = "the input"
     elif isinstance(source, (str, os.PathLike)):
         label = name or str(Path(source))
-        data = _read_path(Path(source), title.format(name=label), kind, limit)
+        data = _read_path(Path(source), title.format(name=label), kind, limit, advice)
         what = "the file"
     elif hasattr(source, "read"):
         label = name or str(getattr(source, "name", "<file>"))
@@ -127,7 +168,7 @@ def read_source(
             f"cannot read {kind} from a {type(source).__name__}; give a path, bytes or a binary file"
         )
     if data[:2] == _GZIP_MAGIC:
-        data = _gunzip(data, title.format(name=label), limit)
+        data = _gunzip(data, title.format(name=label), limit, advice)
     elif limit is not None and len(data) > limit:
-        raise ValidationError(title.format(name=label), [_too_large(what, limit)])
+        raise ValidationError(title.format(name=label), [_too_large(what, limit, advice)])
     return data, label

@@ -58,10 +58,12 @@ from odmd_bench.leaderboard.files import (
     README_START,
     board_digest,
     discover,
+    entry_file_problems,
     find_root,
     plot_source,
     read_entry,
     readme_path,
+    validate_entry,
 )
 from odmd_bench.leaderboard.output import write
 from odmd_bench.leaderboard.ranking import RANK_CONFIDENCE, RANK_RESAMPLES, RANK_SEED, Ranked, rank_groups
@@ -115,6 +117,7 @@ __all__ = [
     "diff_json",
     "diff_markdown",
     "discover",
+    "entry_file_problems",
     "find_root",
     "frame",
     "load_board_data",
@@ -127,5 +130,6 @@ __all__ = [
     "render_markdown",
     "render_readme_block",
     "score_entry",
+    "validate_entry",
     "write",
 ]

@@ -6,14 +6,14 @@ import datetime as _dt
 import gzip
 import io
 import os
-import tempfile
 from pathlib import Path
 
-from odmd_bench.data.atomic import atomic_paths
+from odmd_bench.data.atomic import atomic_paths, temp_folder
 from odmd_bench.data.examples import Examples
 from odmd_bench.errors import UsageError, ValidationError
 from odmd_bench.evaluation.scoring import EvaluationResult
-from odmd_bench.leaderboard.board import load_board_data, same_predictions, score_entry
+from odmd_bench.inputs.source import read_source
+from odmd_bench.leaderboard.board import load_board_data, name_clash, same_predictions, score_entry
 from odmd_bench.leaderboard.entry import Entry
 from odmd_bench.leaderboard.files import ENTRIES, discover, read_entry, read_predictions_bytes
 from odmd_bench.leaderboard.rules import method_id_problems
@@ -28,29 +28,39 @@ def _gzip_bytes(data: bytes) -> bytes:
 
 
 def _read_input(path: Path) -> bytes:
+    """The CSV's bytes: read as an entry's file is, then decompressed once, as ``evaluate`` does."""
+    title = f"{path} cannot be added"
     try:
-        return read_predictions_bytes(path)
+        raw = read_predictions_bytes(path)
     except ValidationError as e:
-        raise ValidationError(f"{path} cannot be added", e.problems) from None
+        raise ValidationError(title, e.problems) from None
+    return read_source(raw, name=str(path), title=title)[0]
 
 
-def _copied_from(
-    root: Path, spec: BoardSpec, method: str, result: EvaluationResult, examples: dict[str, Examples]
+def _board_problems(
+    root: Path, spec: BoardSpec, entry: Entry, result: EvaluationResult, examples: dict[str, Examples]
 ) -> list[str]:
-    """The other entries of the board whose predictions ``result`` has on every set.
+    """What ``build`` would refuse of ``entry`` beside the board's other entries.
 
-    An entry that cannot be read or scored is passed over here: ``check`` names its problem.
+    Its name (:func:`~odmd_bench.leaderboard.board.name_clash`) or its predictions on
+    every set (a copy) being another entry's. An entry that cannot be read or scored is
+    passed over here: ``check`` names its problem.
     """
     if not (root / ENTRIES).is_dir():
         return []
     found = []
     for folder in discover(root):
-        if folder.name != spec.folder or folder.parent.name == method:
+        if folder.name != spec.folder or folder.parent.name == entry.method:
             continue
         try:
             other = read_entry(folder, root.parent)
+            if other.meta.name == entry.meta.name:
+                found.append(name_clash(spec, entry, other))
             if same_predictions(result, score_entry(other, examples), spec.sets):
-                found.append(other.key)
+                found.append(
+                    f"its predictions are those of {other.key} on every set of {spec.key}; "
+                    "a copy is not a new result"
+                )
         except (ValidationError, OSError):
             continue
     return found
@@ -121,8 +131,8 @@ def add_entry(
     }
     if notes:
         meta["notes"] = notes
-    with tempfile.TemporaryDirectory(prefix="odmd-leaderboard-add-") as tmp:
-        staged = Path(tmp) / method / spec.folder
+    with temp_folder() as tmp:  # a killed add's folder is removed by the next writer
+        staged = tmp / method / spec.folder
         staged.mkdir(parents=True)
         (staged / "predictions.csv.gz").write_bytes(_gzip_bytes(data))
         (staged / "entry.yaml").write_text(
@@ -134,16 +144,9 @@ def add_entry(
             result = score_entry(entry, examples)
         except ValidationError as e:  # named by the file the user gave, not the staged copy
             raise ValidationError(title, e.problems or [e.message]) from None
-        copied = _copied_from(root, spec, method, result, examples)
-        if copied:
-            raise ValidationError(
-                title,
-                [
-                    f"its predictions are those of {key} on every set of {spec.key}; "
-                    "a copy is not a new result"
-                    for key in copied
-                ],
-            )
+        refused = _board_problems(root, spec, entry, result, examples)
+        if refused:
+            raise ValidationError(title, refused)
         misfit = _fits_the_twin(data, spec, result, data_dir)
         if misfit:
             raise ValidationError(title, [misfit])

@@ -187,12 +187,14 @@ def _duplicates(spec: BoardSpec, scored: dict[str, tuple[Entry, EvaluationResult
     for method, (entry, _) in list(scored.items()):
         other = seen.setdefault(entry.meta.name, entry)
         if other is not entry:
-            problems.append(
-                f"{entry.key}: has the name {entry.meta.name!r} of {other.key} on {spec.key}; "
-                "rename one of them"
-            )
+            problems.append(name_clash(spec, entry, other))
             del scored[method]
     return problems
+
+
+def name_clash(spec: BoardSpec, entry: Entry, other: Entry) -> str:
+    """The problem of two entries of one board with one name (``build`` and ``add`` alike)."""
+    return f"{entry.key}: has the name {entry.meta.name!r} of {other.key} on {spec.key}; rename one of them"
 
 
 #: Estimates this close (relative, on every example) are the same: a method run again

@@ -168,12 +168,13 @@ def check(
     *,
     n_resamples: int | None = None,
     progress: Callable[[str], None] | None = None,
+    plot: bool = True,
 ) -> list[str]:
     """Everything that is wrong with the leaderboard folder, one line each (empty: all good).
 
     The lines of :func:`check_report`, the invalid input first.
     """
-    report = check_report(root, data_dir, original, n_resamples=n_resamples, progress=progress)
+    report = check_report(root, data_dir, original, n_resamples=n_resamples, progress=progress, plot=plot)
     return report.invalid + report.differences
 
 
@@ -184,13 +185,14 @@ def check_report(
     *,
     n_resamples: int | None = None,
     progress: Callable[[str], None] | None = None,
+    plot: bool = True,
 ) -> CheckReport:
     """What is wrong with the leaderboard folder: invalid input apart from differences.
 
     Entry problems (metadata, data hashes, predictions) come first; when there are
     none, the committed ``LEADERBOARD.md`` and ``leaderboard.json`` (and the summary
     between the markers of ``../README.md``, where it has them) are compared with what
-    ``build`` would write now, and ``leaderboard.png``, where there is one, must record
+    ``build`` would write now, and ``leaderboard.png`` must be there and record
     the SHA-256 of that JSON (its pixels are not compared: they depend on matplotlib).
 
     Args:
@@ -199,6 +201,7 @@ def check_report(
         original: the original release's folder, imported from when a set is missing.
         n_resamples: resamples of the rank groups' comparison (default: the board's).
         progress: called with one line per board once it is scored.
+        plot: whether ``leaderboard.png`` must be there (``leaderboard check``: always).
     """
     root = Path(root)
     try:
@@ -218,7 +221,7 @@ def check_report(
         if committed != text:
             found = differ(committed, text, name)
             problems.extend(found or [f"{name}: differs from what build writes (whitespace or line ends)"])
-    stale_plot = plot_problem(root, built.json_text)
+    stale_plot = plot_problem(root, built.json_text, required=plot)
     if stale_plot is not None:
         problems.append(stale_plot)
     stale = stale_readme(root, built.readme_block)

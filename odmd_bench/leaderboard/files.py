@@ -10,20 +10,30 @@ The folder (``leaderboard/`` in the repository) holds::
     leaderboard.png    generated: the plot (needs matplotlib); it records the SHA-256 of
                        the leaderboard.json it was drawn from, which ``check`` compares
 
-Nothing under ``entries/`` may be a symbolic link: an entry is refused, naming the link,
-before anything in it is read (a link is never followed, and its target never shown).
+What an entry is, is decided in one place, :func:`read_entry` (also exported as
+``validate_entry``), which ``add``, ``build``, ``check`` and the site all call: every
+file in an entry folder is a regular file with one link (no symbolic link, no hard
+link, no pipe or device: refused, naming it, before anything in it is read, so that no
+other file's content is ever shown), the metadata follows
+:mod:`~odmd_bench.leaderboard.rules`, and the predictions are read as the evaluator
+reads any file (:func:`read_predictions_bytes`, then
+:func:`~odmd_bench.evaluation.parse.parse_predictions`: gzip once, the same cap).
+The rules between the entries of a board (a name or predictions another entry has) are
+:func:`~odmd_bench.leaderboard.board.board_problems`, which ``add`` and ``build`` share.
 """
 
 from __future__ import annotations
 
+import errno
 import hashlib
 import os
+import stat as stat_lib
 import struct
 from pathlib import Path
 
 from odmd_bench.documents import MAX_DOCUMENT_BYTES, DocumentError, load_document
 from odmd_bench.errors import UsageError, ValidationError
-from odmd_bench.inputs.source import MAX_PREDICTIONS_BYTES, read_source
+from odmd_bench.inputs.source import MAX_PREDICTIONS_BYTES
 from odmd_bench.leaderboard.entry import ENTRY_FILES, Entry, validate_meta
 
 #: Generated files and folders, relative to the leaderboard folder.
@@ -98,10 +108,50 @@ def symlinks(folder: Path) -> list[str]:
     return sorted(out)
 
 
+def entry_file_problems(folder: Path) -> list[str]:
+    """Everything at or under an entry folder that is not a folder or a regular file with one link.
+
+    Symbolic links (the entry and method folders included), hard links (a second name for
+    a file elsewhere: reading it would show that file) and pipes, sockets or devices;
+    paths relative to the ``entries`` folder.
+    """
+    top = folder.parent.parent
+    links = symlinks(folder)
+    if links:
+        return [f"{p} is a symbolic link; an entry holds plain files (links are not followed)" for p in links]
+    out, stack = [], [folder]
+    while stack:
+        with os.scandir(stack.pop()) as items:
+            for item in items:
+                st = item.stat(follow_symlinks=False)
+                where = Path(item.path).relative_to(top)
+                if stat_lib.S_ISDIR(st.st_mode):
+                    stack.append(Path(item.path))
+                elif not stat_lib.S_ISREG(st.st_mode):
+                    out.append(
+                        f"{where} is not a regular file (a pipe, socket or device); an entry holds plain files"
+                    )
+                elif st.st_nlink != 1:
+                    out.append(
+                        f"{where} has {st.st_nlink} hard links; an entry holds files of its own "
+                        "(a hard link is another file's content under a second name): copy it instead"
+                    )
+    return sorted(out)
+
+
 def read_capped(path: Path, limit: int) -> bytes:
-    """At most ``limit + 1`` bytes of ``path``, never through a symbolic link."""
-    fd = os.open(path, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0))
+    """At most ``limit + 1`` bytes of ``path``: a regular file with one link, never through a symbolic link.
+
+    Raises:
+        OSError: it cannot be opened, or is not a regular file with one link (checked on
+            the open file, so that nothing swapped in after :func:`entry_file_problems`
+            is read).
+    """
+    fd = os.open(path, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_NONBLOCK", 0))
     with os.fdopen(fd, "rb") as fh:
+        st = os.fstat(fd)
+        if not stat_lib.S_ISREG(st.st_mode) or st.st_nlink != 1:
+            raise OSError(errno.EPERM, "not a regular file with one link")
         return fh.read(limit + 1)
 
 
@@ -125,7 +175,10 @@ def _metadata(folder: Path) -> tuple[Path | None, object, list[str]]:
 
 
 def read_entry(folder: str | os.PathLike[str], repo_root: str | os.PathLike[str] | None = None) -> Entry:
-    """Read and check an entry's metadata (not its predictions' content).
+    """Read and check an entry: its files and its metadata (not its predictions' content).
+
+    The one validator of what an entry is (see the module docstring); its predictions are
+    scored by :func:`~odmd_bench.leaderboard.board.score_entry`.
 
     Args:
         folder: the entry folder ``<root>/entries/<method>/<benchmark>-<split>``.
@@ -134,16 +187,16 @@ def read_entry(folder: str | os.PathLike[str], repo_root: str | os.PathLike[str]
 
     Raises:
         ValidationError: Naming every missing, unknown or malformed field at once, or
-            the symbolic links in the entry.
+            every file in the entry that is not a regular file with one link.
     """
     folder = Path(folder)
     key = f"{folder.parent.name}/{folder.name}"
-    links = symlinks(folder)
-    if links:
-        raise ValidationError(
-            f"entry {key}: symbolic links are not allowed",
-            [f"{p} is a symbolic link; an entry holds plain files (links are not followed)" for p in links],
+    odd = entry_file_problems(folder)
+    if odd:
+        rule = (
+            "symbolic links are not allowed" if "symbolic link" in odd[0] else "only plain files are allowed"
         )
+        raise ValidationError(f"entry {key}: {rule}", odd)
     path, data, problems = _metadata(folder)
     if path is None or not isinstance(data, dict):
         raise ValidationError(f"entry {key}: metadata cannot be used", problems)
@@ -160,15 +213,23 @@ def read_entry(folder: str | os.PathLike[str], repo_root: str | os.PathLike[str]
     return Entry(folder=folder, key=key, meta=meta, predictions=folder / meta.predictions)
 
 
-def read_predictions_bytes(path: Path) -> bytes:
-    """The predictions CSV's bytes, decompressed when gzip-compressed.
+#: The one validator of what an entry is (its files and metadata): ``add``, ``build``,
+#: ``check`` and the site call it; the entry's predictions are then scored by
+#: :func:`~odmd_bench.leaderboard.board.score_entry`.
+validate_entry = read_entry
 
-    Read without following a link (:func:`read_capped`), then as the evaluator reads any
-    input (:func:`~odmd_bench.inputs.source.read_source`: gzip, the size cap).
+
+def read_predictions_bytes(path: Path) -> bytes:
+    """The predictions file's bytes as stored (gzip or not), for the evaluator to read.
+
+    Read without following a link, from a regular file with one link (:func:`read_capped`),
+    and capped at :data:`MAX_PREDICTIONS_BYTES`; decompression is the evaluator's
+    (:func:`~odmd_bench.evaluation.parse.parse_predictions`), exactly once, as for
+    ``evaluate``: a file gzipped twice is refused by both.
 
     Raises:
         ValidationError: When it cannot be read, is a link, or is larger than
-            :data:`MAX_PREDICTIONS_BYTES` (decompressed).
+            :data:`MAX_PREDICTIONS_BYTES`.
     """
     title = f"{path} cannot be scored"
     try:
@@ -179,7 +240,9 @@ def read_predictions_bytes(path: Path) -> bytes:
                 title, ["the file is a symbolic link, which is not followed; give the file itself"]
             ) from None
         raise ValidationError(title, [f"the file cannot be read ({e.strerror or e})"]) from None
-    return read_source(raw, name=str(path), title=title)[0]
+    if len(raw) > MAX_PREDICTIONS_BYTES:
+        raise ValidationError(title, [f"the file is larger than {MAX_PREDICTIONS_BYTES / 2**20:g} MiB"])
+    return raw
 
 
 def readme_path(root: str | os.PathLike[str]) -> Path:
@@ -241,12 +304,16 @@ def plot_source(path: str | os.PathLike[str]) -> str | None:
     return None
 
 
-def plot_problem(root: str | os.PathLike[str], json_text: str) -> str | None:
-    """Why ``leaderboard.png`` does not show the board ``json_text`` describes (None: it does, or there is none)."""
+def plot_problem(root: str | os.PathLike[str], json_text: str, *, required: bool = True) -> str | None:
+    """Why ``leaderboard.png`` does not show the board ``json_text`` describes (None: it does).
+
+    A missing plot is a problem too, unless not ``required``: the board is its tables, its
+    JSON and its plot.
+    """
     path = Path(root) / PLOT
-    if not path.exists():
-        return None
     fix = "run `odmd-bench leaderboard build` with the [plot] extra (pip install 'odmd-bench[plot]')"
+    if not path.exists() and not path.is_symlink():
+        return f"{PLOT} is missing; {fix}" if required else None
     if not path.is_file():  # a folder, a pipe (never opened: it would wait for a writer)
         return f"{PLOT} is not a regular file; remove it and {fix}"
     try:

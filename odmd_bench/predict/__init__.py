@@ -16,8 +16,9 @@ from typing import Any
 import numpy as np
 
 from odmd_bench.data.examples import Examples
-from odmd_bench.errors import DataError, UsageError
+from odmd_bench.errors import DataError, DepthRangeError, UsageError
 from odmd_bench.evaluation.metrics import percent_error
+from odmd_bench.inputs.bounds import MAX_ABS_DEPTH, depth_problems
 from odmd_bench.inputs.problems import SHOWN, show
 from odmd_bench.predict.checks import method_warnings, scale_warnings
 from odmd_bench.predict.sequences import Sequences, number_cell, text_cell
@@ -134,6 +135,7 @@ def predict_sequences(sequences: Sequences, method: str | Any, **options: Any) -
     Raises:
         UsageError: an unknown method or option; a method that needs the camera
             intrinsics and none were given; sequences too short for the method.
+        DepthRangeError: depths not finite or beyond the shared bound, naming the sequences.
     """
     from odmd_bench import methods  # (imported on use: the package's import stays light)
 
@@ -181,6 +183,18 @@ def predict_sequences(sequences: Sequences, method: str | Any, **options: Any) -
                 if hasattr(m, "run")
                 else m.predict_report(run_on.without_truth(), **run_options)
             )
+        except DepthRangeError as e:
+            names = [sequences.names[int(index[i])] for i in e.where]
+            raise DepthRangeError(
+                e.message.replace("examples", "sequences"),
+                [
+                    "sequences "
+                    + ", ".join(show(x) for x in names[:SHOWN])
+                    + (", ..." if len(names) > SHOWN else ""),
+                    *e.problems[1:],
+                ],
+                where=[int(index[i]) for i in e.where],
+            ) from None
         except DataError as e:
             if "intrinsics" in e.message and ex.attrs.get("fx") is None:
                 raise UsageError(
@@ -188,6 +202,15 @@ def predict_sequences(sequences: Sequences, method: str | Any, **options: Any) -
                     "(pixels, in the same pixel frame as the boxes), or intrinsics= from Python"
                 ) from None
             raise
+        far = depth_problems(d)
+        if far.any():  # a method object without ``run`` (``Method.run`` checks its own)
+            bad = [sequences.names[int(i)] for i in index[far][:SHOWN]]
+            raise DepthRangeError(
+                f"method {name!r} gives depths that are not finite or beyond {MAX_ABS_DEPTH:.0e} m for "
+                f"{int(far.sum())} of {len(index)} sequences",
+                ["sequences " + ", ".join(show(x) for x in bad) + (", ..." if far.sum() > SHOWN else "")],
+                where=index[far].tolist(),
+            )
         depth[index] = d
         used[index] = ex.n_obs
         detections[index] = ex.detected.sum(axis=1)

@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from odmd_bench.inputs.bounds import MAX_ABS_DEPTH, MAX_PIXELS, MIN_TRUE_DEPTH, outside
 from odmd_bench.inputs.formats import OPTIONAL_SEQUENCE_COLUMNS as OPTIONAL_COLUMNS
 from odmd_bench.inputs.formats import ORIENTATION_COLUMNS
 from odmd_bench.inputs.formats import SEQUENCE_COLUMNS as REQUIRED_COLUMNS
@@ -235,6 +236,7 @@ def check_rows(rows: Rows, problems: Problems) -> None:
         problems.add_lines(f"{c} is empty", np.isnan(num[:, j]), lines)
     for j, c in enumerate(_NUMERIC):
         problems.add_lines(f"{c} is not finite", np.isinf(num[:, j]), lines)
+    _bounds(rows, problems)
     box = num[:, 1:5]
     empty = np.isnan(box)
     problems.add_lines(
@@ -274,6 +276,27 @@ def check_rows(rows: Rows, problems: Problems) -> None:
             problems.add_lines(
                 "depth must be > 0 (a true depth, metres)", np.isfinite(d) & (d <= 0), lines, d
             )
+
+
+def _bounds(rows: Rows, problems: Problems) -> None:
+    """The shared numeric bounds (:mod:`odmd_bench.inputs.bounds`) on corners, camera and depth."""
+    lines, num = rows.lines, rows.numbers
+    for j, c in enumerate(_NUMERIC):
+        if c in _BOX:
+            limit, unit = MAX_PIXELS, "pixels"
+        elif c in _CAM:
+            limit, unit = MAX_ABS_DEPTH, "m"
+        else:
+            continue
+        out = outside(num[:, j], -limit, limit)
+        problems.add_lines(f"{c} is out of range (|{c}| > {limit:g} {unit})", out, lines, num[:, j])
+    if rows.depth is not None:
+        d = rows.depth
+        with np.errstate(invalid="ignore"):
+            out = outside(d, MIN_TRUE_DEPTH, MAX_ABS_DEPTH) & (d > 0)  # <= 0 is named apart
+        problems.add_lines(
+            f"depth is out of range ({MIN_TRUE_DEPTH:g} to {MAX_ABS_DEPTH:g} m)", out, lines, d
+        )
 
 
 def group(rows: Rows, problems: Problems) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

@@ -53,7 +53,7 @@ from odmd_bench.data.pixels import (
 from odmd_bench.errors import UsageError, ValidationError
 from odmd_bench.inputs.problems import SHOWN, Problems, show
 from odmd_bench.inputs.records import decode
-from odmd_bench.inputs.source import read_source, stdin_bytes
+from odmd_bench.inputs.source import MAX_SEQUENCES_BYTES, cap_advice, input_limit, read_source, stdin_bytes
 from odmd_bench.predict.checks import fraction_boxes_problem
 from odmd_bench.predict.orientation import (
     NO_TURN_DEGREES,
@@ -222,7 +222,9 @@ def read_sequences(
 
     Args:
         source: a path, ``"-"`` for standard input, or the file's bytes; gzip-compressed
-            content (``.csv.gz``) is decompressed.
+            content (``.csv.gz``) is decompressed. At most
+            :data:`~odmd_bench.inputs.source.MAX_SEQUENCES_BYTES` (256 MiB) are read, before
+            and after decompression; ``ODMD_BENCH_MAX_INPUT_MIB`` sets another cap.
         image_size: ``(width, height)`` of the images the boxes are in, pixels.
         intrinsics: ``(fx, fy, cx, cy)`` in pixels, for the methods that need them, and
             to carry the boxes of a turning camera.
@@ -238,18 +240,24 @@ def read_sequences(
         orientation and the camera positions are in its axes.
 
     Raises:
-        ValidationError: the file cannot be read as sequences; one line per kind of
-            problem with its count and first lines (line 1 is the header).
+        ValidationError: the file cannot be read as sequences (or is over the cap); one
+            line per kind of problem with its count and first lines (line 1 is the header).
         UsageError: a bad ``image_size`` or ``intrinsics``.
     """
     size = image_size_of(image_size)
     k = intrinsics_of(intrinsics)
+    limit, advice = input_limit(MAX_SEQUENCES_BYTES), cap_advice("a sequences file")
     if isinstance(source, bytes):
-        data, where = read_source(source, limit=None, title=_TITLE, kind="sequences")
+        data, where = read_source(source, limit=limit, title=_TITLE, kind="sequences", advice=advice)
     elif str(source) == "-":
-        data, where = read_source(stdin_bytes(), name="<stdin>", limit=None, title=_TITLE, kind="sequences")
+        stream = stdin_bytes()
+        data, where = read_source(
+            stream, name="<stdin>", limit=limit, title=_TITLE, kind="sequences", advice=advice
+        )
     else:
-        data, where = read_source(source, name=str(source), limit=None, title=_TITLE, kind="sequences")
+        data, where = read_source(
+            source, name=str(source), limit=limit, title=_TITLE, kind="sequences", advice=advice
+        )
     title = f"{where} cannot be read as sequences"
     if not data or data.isspace():
         raise ValidationError(
