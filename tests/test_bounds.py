@@ -116,7 +116,7 @@ def test_pixels_refuse_out_of_range_arrays_and_options() -> None:
     camera = np.zeros((2, ex.n_obs, 3))
     camera[1, 3, 2] = 1e200
     with pytest.raises(DataError) as info:
-        odmd_bench.data.pixels.from_pixels(corners, camera, (640, 480), depth=[1e-300, 3.0])
+        odmd_bench.Examples.from_pixels(corners, camera, (640, 480), depth=[1e-300, 3.0])
     text = str(info.value)
     assert "camera position beyond 1e+12 m: observation 1 3" in text
     assert "known depth outside 1e-06 to 1e+12 m: example 0" in text

@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 import yaml
 from click.testing import CliRunner
+from conftest import recorded_plot
 
 from odmd_bench import leaderboard as lb
 from odmd_bench.cli.main import cli
@@ -86,20 +87,6 @@ def board(built_board: Path, tmp_path: Path) -> Path:
     root = tmp_path / "leaderboard"
     shutil.copytree(built_board, root)
     return root
-
-
-def _recorded_plot(root: Path) -> None:
-    """A leaderboard.png that records the current leaderboard.json (what check reads; no pixels)."""
-    import struct
-    import zlib
-
-    digest = lb.board_digest((root / lb.JSON_FILE).read_text(encoding="utf-8"))
-    text = lb.PLOT_SOURCE_KEY.encode("latin-1") + b"\0" + digest.encode()
-
-    def chunk(kind: bytes, data: bytes) -> bytes:
-        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
-
-    (root / lb.PLOT).write_bytes(b"\x89PNG\r\n\x1a\n" + chunk(b"tEXt", text) + chunk(b"IEND", b""))
 
 
 def _check(root: Path, data_dir: Path) -> list[str]:
@@ -535,8 +522,8 @@ def test_cli_check_exits_1_on_a_difference_and_2_on_a_broken_entry_with_a_line_p
     args = ["leaderboard", "check", "--root", str(board), "--data-dir", str(v1_data_dir)]
     # The fixture built with FAST resamples, and the CLI's default is patched to match.
     missing = runner.invoke(cli, args)  # the fixture draws no plot: the CLI requires one
-    assert missing.exit_code == 2 and "leaderboard.png is missing" in missing.output
-    _recorded_plot(board)
+    assert missing.exit_code == 1 and "leaderboard.png is missing" in missing.output
+    recorded_plot(board)
     ok = runner.invoke(cli, args)
     assert ok.exit_code == 0, ok.output
     assert ok.stdout.startswith("leaderboard check passed: ")
@@ -562,9 +549,10 @@ def test_cli_check_exits_1_on_a_difference_and_2_on_a_broken_entry_with_a_line_p
 
 
 def test_check_report_tells_invalid_entries_from_differences(board: Path, v1_data_dir: Path) -> None:
-    assert lb.check_report(board, v1_data_dir, n_resamples=FAST) == lb.CheckReport([], [])
+    # the fixture draws no plot (plot=False: not required here)
+    assert lb.check_report(board, v1_data_dir, n_resamples=FAST, plot=False) == lb.CheckReport([], [])
     (board / lb.JSON_FILE).unlink()
-    report = lb.check_report(board, v1_data_dir, n_resamples=FAST)
+    report = lb.check_report(board, v1_data_dir, n_resamples=FAST, plot=False)
     assert report.invalid == [] and report.differences == [
         "leaderboard.json is missing; run `odmd-bench leaderboard build`"
     ]
@@ -667,7 +655,7 @@ def test_cli_add_makes_an_entry_that_build_ranks(
     stale = runner.invoke(cli, ["leaderboard", "check", *common])
     assert stale.exit_code == 1 and "build writes '| 2 | [Exp 2](entries/exp2/odmd-v1-test/)" in stale.output
     assert runner.invoke(cli, ["leaderboard", "build", "--no-plot", *common]).exit_code == 0
-    _recorded_plot(board)
+    recorded_plot(board)
     assert runner.invoke(cli, ["leaderboard", "check", *common]).exit_code == 0
 
 
