@@ -5,6 +5,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import shutil
 import subprocess
 import sys
 import time
@@ -19,6 +20,7 @@ torch = pytest.importorskip("torch")
 
 from odmd_bench_baselines import dbox  # noqa: E402
 from odmd_bench_baselines.dbox import model as model_module  # noqa: E402
+from odmd_bench_baselines.dbox import weights as weights_module  # noqa: E402
 from odmd_bench_baselines.dbox.model import (  # noqa: E402
     DBox,
     checkpoint_shapes,
@@ -1000,3 +1002,39 @@ def test_two_runs_on_a_loaded_machine_train_the_same_weights(tmp_path: Path) -> 
             p.wait()
     assert weights[0].keys() == weights[1].keys()
     assert all(torch.equal(weights[0][k], weights[1][k]) for k in weights[0])
+
+
+def test_the_shipped_weights_hold_each_checkpoint_once() -> None:
+    """Two shipped names for one checkpoint keep one file; the other's record names it."""
+    files = sorted(dbox.WEIGHTS_DIR.rglob("*.pt"))
+    digests = [(p.parent, hashlib.sha256(p.read_bytes()).hexdigest()) for p in files]
+    assert len(set(digests)) == len(digests), "byte-identical weight files in one folder"
+    kept_once = [
+        r
+        for r in dbox.WEIGHTS_DIR.rglob("dbox_*.json")
+        if json.loads(r.read_text()).get(weights_module.SAME_AS)
+    ]
+    assert kept_once  # ns-z's perturb checkpoint is its overall one; abs-z's perturb is its normal one
+    for record in kept_once:
+        path = record.with_suffix(".pt")
+        assert not path.exists() and weights_module.stored_at(path).is_file()
+        _, sha = dbox.verify_weights(path, require_record=True)  # checked against its own record
+        assert sha == json.loads(record.read_text())["weights_sha256"]
+        config = path.name.removeprefix("dbox_").split(".")[0]
+        assert path.name.split(".")[1] in dbox.per_set_names(dbox.weights_path(config), config)
+
+
+def test_a_record_naming_other_bytes_is_refused(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A same_weights_as that names another checkpoint fails its own record's hash."""
+    shipped = tmp_path / "weights"
+    shutil.copytree(dbox.WEIGHTS_DIR, shipped)
+    monkeypatch.setattr(weights_module, "WEIGHTS_DIR", shipped)
+    record = shipped / "dbox_ns-z.perturb.json"
+    doc = json.loads(record.read_text())
+    record.write_text(json.dumps(dict(doc, same_weights_as="dbox_ns-z.robot.pt")))
+    with pytest.raises(DataError, match="do not match its record"):
+        dbox.verify_weights(shipped / "dbox_ns-z.perturb.pt", require_record=True)
+    # outside the shipped folders a record never stands for a missing file
+    (tmp_path / "mine.json").write_text(json.dumps({**doc, "same_weights_as": "dbox_ns-z.pt"}))
+    with pytest.raises(DataError, match="DBox weights not found"):
+        dbox.verify_weights(tmp_path / "mine.pt")

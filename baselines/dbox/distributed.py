@@ -170,6 +170,16 @@ def setup(device: str = "auto", timeout_s: float = DEFAULT_TIMEOUT_S) -> DistCon
     return DistContext(rank, world, local, backend, dev, timeout_s)
 
 
+def finish(ctx: DistContext) -> None:
+    """Wait until every process has finished its run (a barrier; a no-op for one process).
+
+    Called after a run that ended normally, before :func:`cleanup`: a failed run skips it,
+    so that no process waits on one that is gone.
+    """
+    if ctx.distributed and tdist.is_initialized():
+        tdist.barrier()
+
+
 def cleanup(ctx: DistContext) -> None:
     """Leave the process group (a no-op for one process)."""
     if ctx.distributed and tdist.is_initialized():

@@ -61,6 +61,7 @@ from odmd_bench_baselines.dbox.distributed import (
     all_sum,
     cleanup,
     collective_failure,
+    finish,
     launch_ranks,
     setup,
     shard,
@@ -375,10 +376,15 @@ def train(
     owned = not torch.distributed.is_initialized()
     ctx = setup(device, dist_timeout)
     try:
-        return _run(
+        result = _run(
             ctx, cfg, steps, out, seed, every, resume, schedule, min_lr_ratio, lr, init, val_sets,
             batch_size, command, progress, progress_every, on_step, precision, state_path, weights_path,
         )  # fmt: skip
+        if owned:
+            # Every process leaves together: one that tore its group down while process 0
+            # was still validating and writing could abort at exit (gloo's threads).
+            finish(ctx)
+        return result
     finally:
         if owned:
             cleanup(ctx)

@@ -77,13 +77,45 @@ def per_set_path(weights: str | os.PathLike[str], set_name: str) -> Path:
 
 
 def per_set_names(overall: Path, config: str) -> list[str]:
-    """The sets with a per-set checkpoint beside ``overall`` (``dbox_<config>.<set>.pt``)."""
+    """The sets with a per-set checkpoint beside ``overall`` (``dbox_<config>.<set>.pt``).
+
+    A shipped per-set checkpoint that is the same file as another of its folder is shipped
+    once: its record stands for it (:func:`stored_at`).
+    """
     prefix = f"dbox_{config}."
+    kept_once = (p.with_suffix(".pt") for p in overall.parent.glob(f"{prefix}*.json"))
+    found = {p for p in kept_once if stored_at(p) != p}
+    found.update(overall.parent.glob(f"{prefix}*.pt"))
     return sorted(
-        p.name[len(prefix) : -len(".pt")]
-        for p in overall.parent.glob(f"{prefix}*.pt")
-        if "." not in p.name[len(prefix) : -len(".pt")]
+        p.name[len(prefix) : -len(".pt")] for p in found if "." not in p.name[len(prefix) : -len(".pt")]
     )
+
+
+#: In a shipped checkpoint's record: the file of its folder that holds the same bytes.
+SAME_AS = "same_weights_as"
+
+
+def stored_at(path: Path) -> Path:
+    """Where the bytes of the shipped checkpoint ``path`` are stored.
+
+    The wheel ships a checkpoint once: a per-set checkpoint selected at the same step
+    as another of its configuration (the same bytes) has no file of its own, and its
+    record names the file that holds them (``"same_weights_as": "dbox_ns-z.pt"``, beside
+    it). The bytes are still checked against this record's own ``weights_sha256``.
+    Anything else, and any path outside the shipped folders, is stored at itself.
+    """
+    here = path.parent.resolve()
+    shipped_folders = (WEIGHTS_DIR.resolve(), *(d.resolve() for d in WEIGHTS_DIR.glob("selected-on-*")))
+    record = path.with_suffix(".json")
+    if path.exists() or here not in shipped_folders or not record.is_file():
+        return path
+    try:
+        name = json.loads(record.read_text(encoding="utf-8")).get(SAME_AS)
+    except (OSError, ValueError, AttributeError):
+        return path
+    if isinstance(name, str) and re.fullmatch(r"dbox_[a-z-]+(\.[a-z]+)?\.pt", name) and name != path.name:
+        return path.with_name(name)
+    return path
 
 
 def shipped() -> dict[str, list[str]]:
@@ -199,17 +231,18 @@ def verify_weights(
     """
     path = Path(path)
     record = path.with_suffix(".json")
-    if not path.is_file():
-        raise DataError(f"DBox weights not found: {path}")
-    if path.stat().st_size > MAX_WEIGHTS_BYTES:
+    stored = stored_at(path)  # a shipped checkpoint kept once for two names: checked against this record
+    if not stored.is_file():
+        raise DataError(f"DBox weights not found: {stored}")
+    if stored.stat().st_size > MAX_WEIGHTS_BYTES:
         raise DataError(
-            f"{path} is {path.stat().st_size} bytes, more than a DBox checkpoint "
+            f"{stored} is {stored.stat().st_size} bytes, more than a DBox checkpoint "
             f"({MAX_WEIGHTS_BYTES >> 20} MB at most): not read"
         )
     try:
-        data = path.read_bytes()
+        data = stored.read_bytes()
     except OSError as e:
-        raise DataError(f"cannot read DBox weights {path}: {e.strerror or e}") from None
+        raise DataError(f"cannot read DBox weights {stored}: {e.strerror or e}") from None
     actual = _sha256(data)
     source = "the given weights_sha256"
     if weights_sha256 is not None:
