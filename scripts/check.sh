@@ -2,7 +2,7 @@
 # The project's checks, in the order a failure is cheapest to read: lint, format, types, the API
 # reference, then the wheel as users install it: its contents, its commands run outside the
 # repository (the leaderboard re-scoring among them), and the whole test suite, run once, on it.
-# Each step says how long it took; about 4 minutes in all on 2 idle cores (docs/development.md).
+# Each step says how long it took; about 4 minutes in all on 2 idle cores, after the installs (docs/development.md).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 start=$SECONDS
