@@ -91,6 +91,11 @@ def per_set_names(overall: Path, config: str) -> list[str]:
     )
 
 
+def _shipped_folders() -> tuple[Path, ...]:
+    """The folders of the shipped checkpoints, resolved: the weights folder and its ``selected-on-*``."""
+    return (WEIGHTS_DIR.resolve(), *(d.resolve() for d in WEIGHTS_DIR.glob("selected-on-*")))
+
+
 #: In a shipped checkpoint's record: the file of its folder that holds the same bytes.
 SAME_AS = "same_weights_as"
 
@@ -104,10 +109,8 @@ def stored_at(path: Path) -> Path:
     it). The bytes are still checked against this record's own ``weights_sha256``.
     Anything else, and any path outside the shipped folders, is stored at itself.
     """
-    here = path.parent.resolve()
-    shipped_folders = (WEIGHTS_DIR.resolve(), *(d.resolve() for d in WEIGHTS_DIR.glob("selected-on-*")))
     record = path.with_suffix(".json")
-    if path.exists() or here not in shipped_folders or not record.is_file():
+    if path.exists() or path.parent.resolve() not in _shipped_folders() or not record.is_file():
         return path
     try:
         name = json.loads(record.read_text(encoding="utf-8")).get(SAME_AS)
@@ -444,7 +447,7 @@ def _formulation(path: Path, sha: str) -> str:
 def _shipped_config(path: Path, sha: str) -> str | None:
     """The configuration of a shipped checkpoint: by its place and name, or by its hash."""
     here = path.resolve().parent
-    if here in (WEIGHTS_DIR.resolve(), *(d.resolve() for d in WEIGHTS_DIR.glob("selected-on-*"))):
+    if here in _shipped_folders():
         name = path.name.removeprefix("dbox_").split(".")[0]
         if name in CONFIGS:
             return name

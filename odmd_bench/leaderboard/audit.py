@@ -41,9 +41,9 @@ import numpy as np
 from odmd_bench.data.examples import Examples
 from odmd_bench.errors import OdmdError, UsageError, ValidationError
 from odmd_bench.leaderboard.audit_files import audit_json, read_audits
-from odmd_bench.leaderboard.audit_files import rounded as _r
 from odmd_bench.leaderboard.entry import Entry
 from odmd_bench.leaderboard.specs import SET_TITLES
+from odmd_bench.leaderboard.specs import rounded as _r
 
 #: The board audited: its generated sets are drawn afresh.
 BENCHMARK = "odmd-v1"

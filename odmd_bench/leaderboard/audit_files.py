@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from odmd_bench.data.atomic import atomic_texts
+from odmd_bench.leaderboard.specs import rounded
 
 if TYPE_CHECKING:
     from odmd_bench.leaderboard.board import Board
@@ -196,14 +197,6 @@ def _entry_problems(e: object, sets: list[str]) -> list[str]:
         ):
             return ["a test's values must be numbers"]
     return []
-
-
-def rounded(x: float) -> float:
-    """``x`` rounded as ``leaderboard.json`` keeps floats (no ``-0.0``)."""
-    from odmd_bench.leaderboard.specs import JSON_DECIMALS
-
-    v = round(float(x), JSON_DECIMALS)
-    return 0.0 if v == 0 else v
 
 
 def audit_problems(audits: Sequence[Mapping[str, Any]], boards: Sequence[Board]) -> list[str]:

@@ -20,6 +20,7 @@ from odmd_bench.leaderboard.files import ENTRIES
 from odmd_bench.leaderboard.ranking import RANK_CONFIDENCE, RANK_SEED, resamples, rule
 from odmd_bench.leaderboard.reported import ReportedResult, read_reported
 from odmd_bench.leaderboard.specs import JSON_DECIMALS, SET_TITLES
+from odmd_bench.leaderboard.specs import rounded as _r
 
 
 @dataclass(frozen=True)
@@ -73,11 +74,6 @@ def build(
         readme_block=render_readme_block(boards),
         audits=audits,
     )
-
-
-def _r(x: float) -> float:
-    v = round(float(x), JSON_DECIMALS)
-    return 0.0 if v == 0 else v  # no "-0.0"
 
 
 def _diff_dict(d: PairedDifference | None, a: str, b: str) -> dict[str, object] | None:

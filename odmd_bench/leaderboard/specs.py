@@ -69,3 +69,9 @@ def board_spec(benchmark: str, split: str) -> BoardSpec:
 #: Decimals kept for floats in leaderboard.json, so that the file does not depend on the
 #: last bit of a sum (which may differ between numpy builds).
 JSON_DECIMALS = 6
+
+
+def rounded(x: float) -> float:
+    """``x`` rounded as ``leaderboard.json`` keeps floats (:data:`JSON_DECIMALS`; no ``-0.0``)."""
+    v = round(float(x), JSON_DECIMALS)
+    return 0.0 if v == 0 else v
