@@ -250,15 +250,19 @@ def test_a_torchrun_restart_resumes_and_the_batch_size_is_an_option(
 
 @pytest.mark.skipif(not torch.cuda.is_available(), reason="no CUDA device")
 @pytest.mark.parametrize("precision", ["fp32", "bf16"])
-def test_a_few_steps_on_cuda(tmp_path: Path, precision: str) -> None:
+@pytest.mark.parametrize("data", ["host", "device"])
+def test_a_few_steps_on_cuda(tmp_path: Path, precision: str, data: str) -> None:
     result = train(
         "p", 20, tmp_path / "run", seed=0, device="cuda", val_every=10, val_sets=_tiny_val(),
-        batch_size=512, progress=None, precision=precision,
+        batch_size=512, progress=None, precision=precision, data=data,
     )  # fmt: skip
     losses = np.array(result.losses)
     assert len(losses) == 20 and np.isfinite(losses).all() and losses[-5:].mean() < losses[:3].mean()
     record = json.loads((tmp_path / "run" / "dbox_p.json").read_text())
     assert record["devices"][0].startswith("cuda:0") and record["precision"] == precision
+    assert record["data"] == data
+    if data == "device":  # another stream: nothing to compare step by step with the CPU's
+        return
     cpu = train(
         "p", 1, tmp_path / "cpu", seed=0, device="cpu", val_every=1, val_sets=_tiny_val(),
         batch_size=512, progress=None,

@@ -100,6 +100,15 @@ def config_option(**kwargs: Any) -> Callable[[Callable[..., Any]], Callable[...,
     help="bf16: the forward pass in automatic mixed precision (bfloat16 products; meant for GPUs).",
 )
 @click.option(
+    "--data",
+    type=click.Choice(["auto", "host", "device"]),
+    default="auto",
+    show_default=True,
+    help="Where the batches are generated: host (numpy on the CPU: the stream the shipped weights were "
+    "trained on), device (the same generator in torch on --device: no copy per step, another random "
+    "stream); auto: device on CUDA, host on the CPU.",
+)
+@click.option(
     "--dist-timeout",
     type=click.FloatRange(min=0.0, min_open=True),
     default=600.0,
@@ -123,6 +132,7 @@ def train_dbox(
     batch_size: int,
     precision: str,
     dist_timeout: float,
+    data: str,
     data_dir: Path | None,
 ) -> None:
     """Train DBox on freshly generated examples; keep the best model by validation.
@@ -151,7 +161,9 @@ def train_dbox(
     args += ["--schedule", schedule, "--lr", f"{lr:g}"] + (["--init", str(init)] if init else [])
     args += ["--val-benchmark", val_benchmark] if val_benchmark is not None else []
     args += ["--batch-size", str(batch_size)] if batch_size != 512 else []
-    args += ["--threads", str(threads), "--device", device, "--precision", precision, "--out", str(out)]
+    args += ["--threads", str(threads), "--device", device, "--precision", precision]
+    args += ["--data", data] if data != "auto" else []
+    args += ["--out", str(out)]
     args += ["--resume"] if resume else []
     # The kernel setting changes the weights' last bits: part of the command when it does.
     kernels = ["ODMD_BENCH_ONEDNN=1"] if os.environ.get("ODMD_BENCH_ONEDNN") == "1" else []
@@ -174,6 +186,7 @@ def train_dbox(
         precision=precision,
         dist_timeout=dist_timeout,
         batch_size=batch_size,
+        data=data,
     )
     if os.environ.get("RANK", "0") != "0":  # process 0 reports; the others did not validate
         return

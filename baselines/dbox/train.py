@@ -14,7 +14,9 @@ Everything random comes from the seed: a ``numpy.random.Generator`` (PCG64) for 
 data and a ``torch.Generator`` for the initial weights, so a run on the CPU with the
 same seed and thread count gives the same weights, and a resumed run continues
 exactly where the interrupted one was (model, optimizer, step, data generator state,
-validation history are all in ``last.pt``).
+validation history are all in ``last.pt``). With ``data="device"`` (the default on
+CUDA) the batches are drawn by the same generator written in torch, on the training
+device (:mod:`.device_data`): step t's batch from a generator seeded with (seed, t).
 
 Under ``torchrun`` the run is one model trained by several processes with
 DistributedDataParallel (:mod:`.distributed`): every process draws the step's whole
@@ -55,6 +57,7 @@ from typing import Any, TextIO
 import numpy as np
 import torch
 from odmd_bench_baselines.dbox import load_failure, per_set_path
+from odmd_bench_baselines.dbox.device_data import DATA_SOURCES, DeviceBatches
 from odmd_bench_baselines.dbox.distributed import (
     DEFAULT_TIMEOUT_S,
     DistContext,
@@ -281,6 +284,7 @@ def train(
     on_step: Callable[[int, float], None] | None = None,
     precision: str = "fp32",
     dist_timeout: float = DEFAULT_TIMEOUT_S,
+    data: str = "auto",
 ) -> TrainResult:
     """Train DBox in one of the paper's configurations; keep the best model by validation.
 
@@ -316,6 +320,10 @@ def train(
         precision: ``fp32`` or ``bf16`` (automatic mixed precision, :data:`PRECISIONS`).
         dist_timeout: under torchrun, seconds a collective operation waits for the
             other processes before the run stops with an error.
+        data: where the batches are generated: ``host`` (numpy on the CPU, the stream
+            the shipped weights were trained on), ``device`` (the same generator in
+            torch on the training device, :mod:`.device_data`: no copy per step, another
+            random stream) or ``auto`` (``device`` on CUDA, ``host`` on the CPU).
 
     Under torchrun (``RANK``, ``WORLD_SIZE``, ``LOCAL_RANK`` set) the processes train one
     model together (see the module's docstring); ``batch_size`` is the global batch.
@@ -343,6 +351,8 @@ def train(
         problems.append(f"seed must be a non-negative integer, got {seed!r}")
     if precision not in PRECISIONS:
         problems.append(f"unknown precision {precision!r}; expected one of {', '.join(PRECISIONS)}")
+    if data != "auto" and data not in DATA_SOURCES:
+        problems.append(f"unknown data source {data!r}; expected auto or one of {', '.join(DATA_SOURCES)}")
     _, world, _ = launch_ranks()
     if batch_size < world:
         problems.append(f"the batch of {batch_size} cannot be split among {world} processes")
@@ -379,6 +389,7 @@ def train(
         result = _run(
             ctx, cfg, steps, out, seed, every, resume, schedule, min_lr_ratio, lr, init, val_sets,
             batch_size, command, progress, progress_every, on_step, precision, state_path, weights_path,
+            data,
         )  # fmt: skip
         if owned:
             # Every process leaves together: one that tore its group down while process 0
@@ -411,9 +422,12 @@ def _run(
     precision: str,
     state_path: Path,
     weights_path: Path,
+    data: str,
 ) -> TrainResult:
     """The training loop of :func:`train`, in each process, its options checked."""
     dev = ctx.device
+    if data == "auto":
+        data = "device" if dev.type == "cuda" else "host"
     val_names = list(val_sets)
     settings = {
         "config": cfg.name,
@@ -430,6 +444,8 @@ def _run(
     }
     if precision != "fp32":  # absent from the settings of runs before precision was one
         settings["precision"] = precision
+    if data != "host":  # likewise: runs before data on the device was one drew on the host
+        settings["data"] = data
     launch = _launch_record(ctx, batch_size)
     model = DBox(generator=torch.Generator().manual_seed(seed)).to(dev)
     if init is not None:
@@ -453,9 +469,9 @@ def _run(
         state["settings"].setdefault("val_benchmark", get_config(cfg.name).val_benchmark)
         if state["settings"] != settings:
             diff = [
-                f"{k}: run has {state['settings'].get(k)!r}, asked for {settings[k]!r}"
-                for k in settings
-                if state["settings"].get(k) != settings[k]
+                f"{k}: run has {state['settings'].get(k)!r}, asked for {settings.get(k)!r}"
+                for k in {**state["settings"], **settings}
+                if state["settings"].get(k) != settings.get(k)
             ]
             raise UsageError(f"cannot resume {out}: the options differ from the run's", diff)
         try:
@@ -492,6 +508,9 @@ def _run(
         except RuntimeError as e:
             raise collective_failure(ctx, step, e) from None
     rows = shard(batch_size, ctx.rank, ctx.world_size)
+    batches = (
+        DeviceBatches(cfg.preset, cfg.perturbation, cfg.formulation, seed, dev) if data == "device" else None
+    )
     # Each process's loss is its rows' share of the global batch's mean (sum / B, times N
     # because DDP averages the N gradients): exact for any split of the batch. One process
     # keeps the plain mean, the arithmetic of runs before DDP.
@@ -508,8 +527,11 @@ def _run(
         rate = learning_rate(step, steps, schedule, min_lr_ratio, lr)
         for group in optimizer.param_groups:
             group["lr"] = rate
-        batch = odmd_bench.generate(batch_size, cfg.preset, cfg.perturbation, rng)
-        x, y, _ = batch_tensors(batch, cfg.formulation, dev, rows)
+        if batches is not None:  # step t's batch depends on (seed, t) alone
+            x, y = batches.batch(step, batch_size, rows)
+        else:
+            batch = odmd_bench.generate(batch_size, cfg.preset, cfg.perturbation, rng)
+            x, y, _ = batch_tensors(batch, cfg.formulation, dev, rows)
         try:
             err = (net(x) - y).abs()
             loss = err.sum() * share if ctx.distributed else err.mean()
@@ -658,6 +680,7 @@ def _write_record(
         "torch_threads": torch.get_num_threads(),
         "cpu_kernels": "onednn" if use_onednn(True) else "plain",
         "precision": settings.get("precision", "fp32"),
+        "data": settings.get("data", "host"),
         **dict(launch or {}),
         "weights_sha256": file_sha256(weights) if weights.exists() else None,
     }

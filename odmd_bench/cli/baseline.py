@@ -91,6 +91,7 @@ def baseline(
     selection: str | None,
     mode: str | None,
     combine: str | None,
+    device: str | None,
 ) -> None:
     """Run method NAME on every set of a split and write a predictions CSV.
 
@@ -116,6 +117,7 @@ def baseline(
         selection=selection,
         mode=mode,
         combine=combine,
+        device=device,
     )
 
     from odmd_bench.predict.checks import method_warnings, scale_warnings

@@ -64,13 +64,21 @@ def data_folder_problems(outputs: Mapping[str, Path | None], data_dir: Path | No
 
 
 #: The options a method may take; each is passed only to a method whose ``predict`` does.
-METHOD_OPTIONS: tuple[str, ...] = ("weights", "weights_sha256", "config", "selection", "mode", "combine")
+METHOD_OPTIONS: tuple[str, ...] = (
+    "weights",
+    "weights_sha256",
+    "config",
+    "selection",
+    "mode",
+    "combine",
+    "device",
+)
 
 F = TypeVar("F", bound=Callable[..., Any])
 
 
 def method_options(f: F) -> F:
-    """Add ``--weights``, ``--weights-sha256``, ``--config``, ``--selection``, ``--mode`` and ``--combine`` to a command running a method."""
+    """Add ``--weights``, ``--weights-sha256``, ``--config``, ``--selection``, ``--mode``, ``--combine`` and ``--device`` to a command running a method."""
     decorators = [
         click.option(
             "--weights",
@@ -108,6 +116,13 @@ def method_options(f: F) -> F:
             help="How a method combines its per-axis solutions, for the methods that have several: "
             "mean (the paper) or lsq (least squares, weighted by each axis's signal; parallax, "
             "expansion).",
+        ),
+        click.option(
+            "--device",
+            type=click.Choice(["cpu", "cuda", "auto"]),
+            default=None,
+            help="Where a network runs, for the methods that have one (DBox): cpu (the default), cuda, "
+            "or auto (cuda when torch sees a GPU).",
         ),
     ]
     for decorate in reversed(decorators):

@@ -95,6 +95,7 @@ def predict(
     selection: str | None,
     mode: str | None,
     combine: str | None,
+    device: str | None,
 ) -> None:
     """Estimate the depth at the last observation of every sequence in SEQUENCES.csv.
 
@@ -132,6 +133,7 @@ def predict(
         selection=selection,
         mode=mode,
         combine=combine,
+        device=device,
     )
 
     seqs = read_sequences(sequences, image_size, intrinsics, normalized_boxes=normalized_boxes)
