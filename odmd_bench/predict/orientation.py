@@ -184,9 +184,11 @@ def _warp(
     rel: np.ndarray, u: np.ndarray, v: np.ndarray, k: tuple[float, float, float, float]
 ) -> tuple[np.ndarray, np.ndarray]:
     fx, fy, cx, cy = k
-    ray = np.stack([(u - cx) / fx, (v - cy) / fy, np.ones_like(u)], axis=-1)
-    p = np.einsum("...ij,...j->...i", rel, ray)
-    return cx + fx * p[..., 0] / p[..., 2], cy + fy * p[..., 1] / p[..., 2]
+    x, y = (u - cx) / fx, (v - cy) / fy
+    z = rel[..., 2, 0] * x + rel[..., 2, 1] * y + rel[..., 2, 2]
+    px = rel[..., 0, 0] * x + rel[..., 0, 1] * y + rel[..., 0, 2]
+    py = rel[..., 1, 0] * x + rel[..., 1, 1] * y + rel[..., 1, 2]
+    return cx + fx * px / z, cy + fy * py / z
 
 
 def _bounds(rel: np.ndarray, box: np.ndarray, k: tuple[float, float, float, float]) -> np.ndarray:
