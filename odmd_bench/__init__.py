@@ -39,6 +39,7 @@ from odmd_bench.evaluation.result import EvaluationResult
 from odmd_bench.evaluation.scoring import evaluate
 from odmd_bench.inputs.bounds import MAX_ABS_DEPTH, MAX_ABS_WEIGHT
 from odmd_bench.predict import predict_sequences
+from odmd_bench.predict.orientation import carry_boxes
 from odmd_bench.predict.sequences import read_sequences
 
 __all__ = [
@@ -68,6 +69,7 @@ __all__ = [
     "atomic_path",
     "atomic_write",
     "all_sets_mean",
+    "carry_boxes",
     "describe",
     "ensure_generated",
     "evaluate",

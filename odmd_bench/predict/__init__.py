@@ -159,6 +159,7 @@ def predict_sequences(sequences: Sequences, method: str | Any, **options: Any) -
                 + f" (longer sequences give {wanted} chosen evenly, the first and the last kept)"
             )
     warnings = scale_warnings(ex for _, ex in sequences.groups)
+    shaped: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
     for index, ex in sequences.groups:
         if wanted is not None:
             ex = select_observations(ex, wanted)
@@ -211,6 +212,9 @@ def predict_sequences(sequences: Sequences, method: str | Any, **options: Any) -
                 ["sequences " + ", ".join(show(x) for x in bad) + (", ..." if far.sum() > SHOWN else "")],
                 where=index[far].tolist(),
             )
+        other = ex.extras.get("other_carry_boxes")
+        if other is not None:  # (a method that models the turn gets them without the rotation)
+            shaped.append((index, d, _other_depths(m, ex, other, options)))
         depth[index] = d
         used[index] = ex.n_obs
         detections[index] = ex.detected.sum(axis=1)
@@ -220,6 +224,9 @@ def predict_sequences(sequences: Sequences, method: str | Any, **options: Any) -
             elif key != "n":
                 before = counts.get(key, 0)
                 counts[key] = (before if isinstance(before, int) else 0) + int(value)
+    said = shape_warning(name, sequences, shaped)
+    if said:
+        warnings.append(said)
     return SequenceDepths(
         names=sequences.names,
         depth=depth,
@@ -229,6 +236,64 @@ def predict_sequences(sequences: Sequences, method: str | Any, **options: Any) -
         counts=counts,
         method=name,
         warnings=tuple(warnings),
+    )
+
+
+#: A translation-only method's depth may change by this fraction between boxes carried as
+#: a flat object's and as a round one's before ``predict`` warns.
+SHAPE_TOLERANCE = 0.05
+
+
+def _other_depths(m: Any, ex: Examples, boxes: np.ndarray, options: dict[str, Any]) -> np.ndarray:
+    """The method's depths from the boxes carried the other way (NaN where it fell back)."""
+    other = Examples(boxes=boxes, detected=ex.detected, camera=ex.camera, attrs=dict(ex.attrs))
+    try:
+        d, _ = m.run(other, **options) if hasattr(m, "run") else m.predict_report(other, **options)
+    except (DepthRangeError, DataError):
+        return np.full(len(ex), np.nan)
+    return np.asarray(d, dtype=np.float64)
+
+
+def shape_warning(
+    name: str, sequences: Sequences, shaped: list[tuple[np.ndarray, np.ndarray, np.ndarray]]
+) -> str | None:
+    """A warning naming the turned sequences whose depth depends on the object's shape.
+
+    A turn changes an object's box in a way that depends on its shape (flat or round);
+    the boxes are carried into the last orientation as a flat object's
+    (:mod:`odmd_bench.predict.orientation`), and the methods read depth from how the
+    boxes change, which amplifies that difference where the camera moves little compared
+    with the depth (Box_LS: by about ``(1 + t) / t`` for a forward travel ``t`` times the
+    last depth). Each method is run again on the boxes carried as a round object's
+    (``other_carry_boxes``; without the rotation for a method that models the turn).
+
+    Args:
+        name: the method's name.
+        sequences: the sequences read.
+        shaped: ``(index, depths, other_depths)`` per group, ``other_depths`` from the
+            boxes carried the other way.
+    """
+    index = np.concatenate([i for i, _, _ in shaped]) if shaped else np.zeros(0, dtype=np.int64)
+    if not index.size:
+        return None
+    d = np.concatenate([x for _, x, _ in shaped])
+    o = np.concatenate([x for _, _, x in shaped])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        change = np.abs(d / o - 1)
+    bad = np.flatnonzero(np.isfinite(change) & (change > SHAPE_TOLERANCE))
+    if not bad.size:
+        return None
+    order = bad[np.argsort(-change[bad], kind="stable")]
+    first = ", ".join(
+        f"{show(sequences.names[int(index[i])])} ({100 * change[i]:.0f} %)" for i in order[:SHOWN]
+    )
+    return (
+        f"{name}: the depths of {bad.size} of {len(sequences)} sequences depend on the object's shape by more "
+        f"than {100 * SHAPE_TOLERANCE:.0f} % (first: {first}): the camera turns (by up to "
+        f"{float(sequences.turn[index[bad]].max()):.3g} degrees), a turn changes a box according to the "
+        "object's shape, and the method amplifies that where the camera moves little for the depth; the "
+        "depths given are a flat object's facing the last observation, a round object's differ by the "
+        "percentages named (docs/own-data.md, a camera that turns)"
     )
 
 

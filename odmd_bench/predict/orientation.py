@@ -14,17 +14,28 @@ camera at the same place with the last observation's orientation:
 - positions: ``R_last^T (C_k - C_last)``, in the last camera's axes;
 - boxes (``carry``, measured against the turn in ``docs/own-data.md``):
 
-  ``"midpoints"`` (the default)
-      the midpoints of the four edges carried by ``H_k``; the box spans them. The best
-      of the three on real (flat) objects, whose image a turn warps by ``H_k``.
+  ``"plane"`` (the default)
+      the box ``B`` in the last orientation whose four corners, carried back by
+      ``H_k^-1``, have the seen box as their bounding box: the box of a flat object
+      facing the last observation (parallel to its image plane), found by Newton's
+      method from the carried midpoints. Exact for such objects, as the methods are
+      exact for them without a turn: they are the model of ODMD and of every method
+      here, a box of the object's size times ``f`` over its depth. Where no such box
+      exists (a thin box seen under a roll, thinner than any upright box turned so
+      would be), the midpoints.
+  ``"midpoints"``
+      the midpoints of the four edges carried by ``H_k``; the box spans them. Close to
+      exact for round objects (an ellipsoid's outline touches its box near the edge
+      midpoints), off by about the turn's ``sec - 1`` on flat ones.
   ``"centre"``
       the box centre is carried by ``H_k``, and the width and height are divided by
       ``lambda = (R_k K^-1 u)_z`` (``u`` the centre), the ratio of the object's depth
-      along the turned axis to its depth along the last one. Exact for the model the
-      methods (and the generator) use, a box centred on the projection of the object's
-      centre of its size times ``f`` over its depth along the optical axis (the robust
-      method models the turn this way itself), but worse than the midpoints on flat
-      objects.
+      along the turned axis to its depth along the last one. Exact only for a
+      "billboard" that turns with the camera (its box the object's size times ``f``
+      over its depth along the turned optical axis), which no fixed object is: a turn
+      on the spot warps any object's image by ``H_k``, whose local scale is not
+      isotropic (``sec^2`` across the turn's axis, ``sec`` along it, where the
+      billboard's box scales by ``sec`` both ways).
   ``"corners"``
       the bounding box of the four carried corners: inflated by the turn.
 
@@ -40,8 +51,8 @@ import numpy as np
 
 from odmd_bench.errors import UsageError
 
-Carry = Literal["centre", "midpoints", "corners"]
-CARRIES: tuple[str, ...] = ("midpoints", "centre", "corners")
+Carry = Literal["plane", "centre", "midpoints", "corners"]
+CARRIES: tuple[str, ...] = ("plane", "midpoints", "centre", "corners")
 
 #: Turns smaller than this (degrees) leave the boxes as they are.
 NO_TURN_DEGREES = 1e-6
@@ -116,7 +127,7 @@ def carry_boxes(
     corners: np.ndarray,
     rel: np.ndarray,
     intrinsics: Sequence[float],
-    carry: Carry = "midpoints",
+    carry: Carry = "plane",
 ) -> np.ndarray:
     """Boxes carried into the last observation's orientation (module docstring).
 
@@ -124,7 +135,7 @@ def carry_boxes(
         corners: (N, n_obs, 4) ``x1, y1, x2, y2`` in pixels; NaN: missed.
         rel: (N, n_obs, 3, 3) :func:`relative_rotations`.
         intrinsics: ``(fx, fy, cx, cy)`` in pixels.
-        carry: ``"midpoints"``, ``"centre"`` or ``"corners"``.
+        carry: ``"plane"``, ``"midpoints"``, ``"centre"`` or ``"corners"``.
 
     Returns:
         (N, n_obs, 4) carried corners, NaN where missed.
@@ -145,6 +156,8 @@ def carry_boxes(
         return cx + fx * p[..., 0] / lam, cy + fy * p[..., 1] / lam, lam
 
     xc, yc = (x1 + x2) / 2, (y1 + y2) / 2
+    if carry == "plane":
+        return _plane_carry(c, rel, (fx, fy, cx, cy))
     if carry == "centre":
         u, v, lam = warp(xc, yc)
         hw, hh = (x2 - x1) / 2 / lam, (y2 - y1) / 2 / lam
@@ -160,6 +173,66 @@ def carry_boxes(
         vs.append(v)
     su, sv = np.stack(us), np.stack(vs)
     return np.stack([su.min(axis=0), sv.min(axis=0), su.max(axis=0), sv.max(axis=0)], axis=-1)
+
+
+#: At most this many Newton steps of the plane carry (on the scenes of ``docs/own-data.md``
+#: 3 or 4 reach rounding; turns of 45 degrees need 5).
+PLANE_ITERATIONS = 8
+
+
+def _warp(
+    rel: np.ndarray, u: np.ndarray, v: np.ndarray, k: tuple[float, float, float, float]
+) -> tuple[np.ndarray, np.ndarray]:
+    fx, fy, cx, cy = k
+    x, y = (u - cx) / fx, (v - cy) / fy
+    z = rel[..., 2, 0] * x + rel[..., 2, 1] * y + rel[..., 2, 2]
+    px = rel[..., 0, 0] * x + rel[..., 0, 1] * y + rel[..., 0, 2]
+    py = rel[..., 1, 0] * x + rel[..., 1, 1] * y + rel[..., 1, 2]
+    return cx + fx * px / z, cy + fy * py / z
+
+
+def _bounds(rel: np.ndarray, box: np.ndarray, k: tuple[float, float, float, float]) -> np.ndarray:
+    """The bounding box (..., 4) of the four corners of ``box`` warped by ``rel``."""
+    x1, y1, x2, y2 = np.moveaxis(box, -1, 0)
+    u, v = _warp(rel, np.stack([x1, x2, x1, x2]), np.stack([y1, y1, y2, y2]), k)
+    return np.stack([u.min(axis=0), v.min(axis=0), u.max(axis=0), v.max(axis=0)], axis=-1)
+
+
+def _plane_carry(c: np.ndarray, rel: np.ndarray, k: tuple[float, float, float, float]) -> np.ndarray:
+    """The box in the last orientation whose four corners, warped back, have ``c`` as bounding box.
+
+    Newton's method on the four edges (the derivatives by central differences), from the
+    edge midpoints carried. Where no such box exists (a thin box seen under a roll,
+    thinner than any box of the last orientation turned so would be) or the steps do not
+    settle, the edge midpoints carried are returned.
+    """
+    back = np.swapaxes(rel, -1, -2)
+    start = carry_boxes(c, rel, k, "midpoints")
+    box = start.copy()
+    scale = np.abs(c[..., 2:] - c[..., :2]).sum(axis=-1, keepdims=True) + 1
+    tol = 1e-10 * (np.abs(c) + scale)
+    h = 1e-4 * scale
+    eye = np.eye(4)
+    with np.errstate(all="ignore"):
+        residual = _bounds(back, box, k) - c
+        for _ in range(PLANE_ITERATIONS):
+            if not (np.abs(residual) > tol).any():  # NaN (missed) compares False
+                break
+            jac = np.stack(
+                [(_bounds(back, box + h * e, k) - _bounds(back, box - h * e, k)) / (2 * h) for e in eye],
+                axis=-1,
+            )
+            live = np.isfinite(jac).all(axis=(-2, -1)) & (
+                np.abs(np.linalg.det(np.where(np.isfinite(jac), jac, 0))) > 1e-12
+            )
+            delta = np.zeros_like(box)
+            delta[live] = np.linalg.solve(jac[live], residual[live][..., None])[..., 0]
+            box = box - delta
+            residual = _bounds(back, box, k) - c
+        ok = (
+            (np.abs(residual) <= tol).all(axis=-1) & (box[..., 2] > box[..., 0]) & (box[..., 3] > box[..., 1])
+        )
+    return np.where(ok[..., None], box, start)
 
 
 __all__ = [

@@ -6,9 +6,25 @@ Cars, people and signs seen from 3 to 30 m by a 640 x 480 camera with ``fx = fy 
 on them (``tests/test_own_scenes.py``) and ``python -m odmd_bench.predict.scenes``
 prints the accuracy table of ``docs/own-data.md``.
 
-Each object is seen as the generator (and every method) models it: a box centred on the
-projection of the object's centre, of its width and height times ``f`` over its depth
-along the camera's optical axis. The camera moves on a straight line to its last
+Each object (``shape``) is fixed in the scene:
+
+``"plane"`` (the default)
+    a flat rectangle of the object's width and height facing the last observation
+    (parallel to its image plane); its box is the bounding box of its four projected
+    corners. Without a turn this is the model of the generator and of every method: a
+    box centred on the projection of the object's centre, of its width and height times
+    ``f`` over its depth.
+``"ellipsoid"``
+    a round object: an ellipsoid with semi-axes of half the width, half the height and
+    half the width, along the last observation's axes; its box is bounded by the tangents
+    of its outline. Its box is not that model even without a turn (off the optical axis
+    its outline is stretched away from the image centre).
+``"billboard"``
+    the model itself at every observation, with the depth along the observation's own
+    optical axis: with a turn, an object that turns with the camera, which no fixed
+    object does (:mod:`odmd_bench.predict.orientation`); kept to show that.
+
+The camera moves on a straight line to its last
 position, ``motion``:
 
 ``"ground"``
@@ -42,7 +58,7 @@ from odmd_bench.errors import UsageError
 from odmd_bench.predict.orientation import quaternions, rotation_matrices
 
 Motion = Literal["ground", "forward", "free"]
-Shape = Literal["billboard", "plane"]
+Shape = Literal["billboard", "plane", "ellipsoid"]
 MOTIONS: tuple[str, ...] = ("ground", "forward", "free")
 #: Object kinds: (width, height) in metres.
 OBJECTS: dict[str, tuple[float, float]] = {"car": (1.8, 1.5), "person": (0.5, 1.75), "sign": (0.6, 0.6)}
@@ -119,7 +135,7 @@ def make_scenes(
     rng: int | np.random.Generator | None = 0,
     *,
     oriented: bool | None = None,
-    shape: Shape = "billboard",
+    shape: Shape = "plane",
     image_size: tuple[float, float] = IMAGE_SIZE,
     intrinsics: tuple[float, float, float, float] = INTRINSICS,
 ) -> Scenes:
@@ -133,9 +149,8 @@ def make_scenes(
         rng: seed or generator.
         oriented: the fixed frame is turned at random and the orientation is written
             (default: where the camera turns); else the fixed frame has the camera's axes.
-        shape: ``"billboard"``, the model above, or ``"plane"``: a flat rectangle facing
-            the last observation, whose box in a turned camera is the bounding box of
-            its four projected corners (to measure how boxes are carried).
+        shape: the object (module docstring): ``"plane"``, ``"ellipsoid"`` or
+            ``"billboard"``.
         image_size: ``(W, H)`` of the camera's images (default 640 x 480).
         intrinsics: ``(fx, fy, cx, cy)`` (default fx = fy = 500 at the centre).
 
@@ -149,8 +164,8 @@ def make_scenes(
     """
     if motion not in MOTIONS:
         raise UsageError(f"unknown motion {motion!r}; expected one of {', '.join(MOTIONS)}")
-    if shape not in ("billboard", "plane"):
-        raise UsageError(f"unknown shape {shape!r}; expected billboard or plane")
+    if shape not in ("billboard", "plane", "ellipsoid"):
+        raise UsageError(f"unknown shape {shape!r}; expected billboard, plane or ellipsoid")
     if oriented is None:
         oriented = turn > 0
     gen = as_rng(rng)
@@ -195,7 +210,7 @@ def make_scenes(
         hw = fx * size[:, 0:1] / pz / 2
         hh = fy * size[:, 1:2] / pz / 2
         corners = np.stack([u - hw, v - hh, u + hw, v + hh], axis=-1)
-        if shape == "plane":
+        if shape == "plane" and turn != 0:  # (without a turn the billboard's box, to the last bit)
             us, vs = [], []
             for sx, sy in ((-1, -1), (1, -1), (-1, 1), (1, 1)):
                 corner = obj + np.stack([sx * size[:, 0] / 2, sy * size[:, 1] / 2, np.zeros(m)], axis=1)
@@ -204,6 +219,22 @@ def make_scenes(
                 vs.append(cy + fy * q[..., 1] / q[..., 2])
             su, sv = np.stack(us), np.stack(vs)
             corners = np.stack([su.min(axis=0), sv.min(axis=0), su.max(axis=0), sv.max(axis=0)], axis=-1)
+        if shape == "ellipsoid":
+            # Semi-axes W/2, H/2, W/2 along the last camera's axes; the box is bounded by the
+            # tangent lines of the outline, the dual conic K (M_k^-1 - p p^T) K^T.
+            kmat = np.array([[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]])
+            semi = np.stack([size[:, 0] / 2, size[:, 1] / 2, size[:, 0] / 2], axis=1)
+            minv = np.einsum("nkji,nj,nkjl->nkil", rel, semi**2, rel)
+            g = minv - p[..., :, None] * p[..., None, :]
+            dual = np.einsum("ij,nkjl,ml->nkim", kmat, g, kmat)
+            ends = []
+            for a in (0, 1):
+                c00, c02, c22 = dual[..., a, a], dual[..., a, 2], dual[..., 2, 2]
+                root = np.sqrt(c02 * c02 - c00 * c22)
+                ends.append(((c02 - root) / c22, (c02 + root) / c22))
+            lo_u, hi_u = np.minimum(*ends[0]), np.maximum(*ends[0])
+            lo_v, hi_v = np.minimum(*ends[1]), np.maximum(*ends[1])
+            corners = np.stack([lo_u, lo_v, hi_u, hi_v], axis=-1)
         inside = (
             (pz > 0.5).all(axis=1)
             & (corners[..., 0] > 0).all(axis=1)

@@ -171,7 +171,10 @@ class Sequences:
             ``examples``. Where the camera turns, the boxes are carried into the last
             observation's orientation, and ``examples.extras`` holds ``rotation``
             (k, n_obs, 3, 3), each observation's camera axes in the last one's, and
-            ``turned_boxes``, the boxes as seen (for a method that models the turn).
+            ``turned_boxes``, the boxes as seen (for a method that models the turn), and
+            ``other_carry_boxes``, the boxes carried the other way (``midpoints``, or
+            ``plane`` where ``carry`` is ``midpoints``): how much a translation-only
+            method's depth depends on the object's shape (``predict`` warns).
         source: where they were read from.
         ignored_columns: columns of the file that were not read.
         attrs: metadata shared by every group's examples (``source_file``).
@@ -216,7 +219,7 @@ def read_sequences(
     intrinsics: Sequence[float] | None = None,
     *,
     normalized_boxes: bool = False,
-    carry: Carry = "midpoints",
+    carry: Carry = "plane",
 ) -> Sequences:
     """Read a sequences CSV (module docstring) strictly, naming every problem at once.
 
@@ -308,7 +311,12 @@ def read_sequences(
                 if k is None:
                     unturned += [str(names[i]) for i in index[turn[index] > NO_TURN_DEGREES]]
                 else:
-                    extras = {"rotation": rel, "turned_boxes": corners_to_boxes(corners, size)[0]}
+                    other = carry_boxes(corners, rel, k, "midpoints" if carry != "midpoints" else "plane")
+                    extras = {
+                        "rotation": rel,
+                        "turned_boxes": corners_to_boxes(corners, size)[0],
+                        "other_carry_boxes": corners_to_boxes(other, size)[0],
+                    }
                     corners = carry_boxes(corners, rel, k, carry)
         truth = None
         obs_depth = None
