@@ -37,6 +37,7 @@ CASES = [
     ("cuda", "host", "fp32"),
     ("cuda", "device", "fp32"),
     ("cuda", "device", "bf16"),
+    ("cuda", "device", "graph"),  # fp32, the step replayed from a CUDA graph (--cuda-graph)
 ]
 
 
@@ -61,7 +62,7 @@ def test_train_steps(benchmark, device: str, data: str, precision: str, tmp_path
         out = tmp_path / f"run{next(runs)}"
         train(
             "p", steps, out, seed=0, device=device, val_every=steps, val_sets=_val(), progress=None,
-            precision=precision, data=data,
+            precision="fp32" if precision == "graph" else precision, data=data, cuda_graph=precision == "graph",
         )  # fmt: skip
         record = json.loads((out / "dbox_p.json").read_text())
         rates.append(steps / record["wall_time_s"])

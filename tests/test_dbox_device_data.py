@@ -170,3 +170,75 @@ def test_dbox_predicts_on_cuda_as_on_the_cpu() -> None:
     cpu = dbox.predict(ex, config="p")
     gpu = dbox.predict(ex, config="p", device="cuda")
     np.testing.assert_allclose(gpu, cpu, rtol=1e-4)
+
+
+def _steps_eager(
+    model: torch.nn.Module, batches: list[tuple[torch.Tensor, torch.Tensor]], rates: list[float]
+) -> None:
+    from odmd_bench_baselines.dbox.train import make_optimizer
+
+    opt = make_optimizer(model)
+    for (x, y), rate in zip(batches, rates, strict=True):
+        for group in opt.param_groups:
+            group["lr"] = rate
+        loss = (model(x) - y).abs().mean()
+        opt.zero_grad(set_to_none=True)
+        loss.backward()
+        opt.step()
+
+
+def test_the_graphed_steps_warm_up_is_undone() -> None:
+    """The step a CUDA graph replays, run eagerly: the warm-up leaves no trace in the weights."""
+    from odmd_bench_baselines.dbox.graphs import GraphedStep, plain_optimizer_state
+    from odmd_bench_baselines.dbox.model import DBox
+    from odmd_bench_baselines.dbox.train import make_optimizer
+
+    cpu = torch.device("cpu")
+    source = device_data.DeviceBatches("odmd", "both", "rel", 0, cpu)
+    batches = [source.batch(t, 32) for t in range(5)]
+    rates = [1e-3, 9e-4, 8e-4, 7e-4, 6e-4]
+    plain = DBox(generator=torch.Generator().manual_seed(0))
+    graphed_model = DBox(generator=torch.Generator().manual_seed(0))
+    _steps_eager(plain, batches, rates)
+    opt = make_optimizer(graphed_model)
+    step = GraphedStep(graphed_model, opt, *batches[0], capture=False)
+    losses = [float(step.step(x, y, rate)) for (x, y), rate in zip(batches, rates, strict=True)]
+    for a, b in zip(plain.parameters(), graphed_model.parameters(), strict=True):
+        torch.testing.assert_close(a, b, rtol=1e-4, atol=1e-6)  # float32 lr tensor
+    assert losses[0] > losses[-1]
+    state = plain_optimizer_state(opt)
+    assert all(isinstance(g["lr"], float) and g["capturable"] is False for g in state["param_groups"])
+    assert float(next(iter(opt.state.values()))["step"]) == 5  # the warm-up's steps undone
+
+
+def test_cuda_graph_is_refused_where_it_cannot_run(tmp_path: Path) -> None:
+    with pytest.raises(UsageError, match="invalid training options") as e:
+        train("p", 2, tmp_path / "r", device="cpu", val_sets=_tiny_val(), progress=None, cuda_graph=True)
+    assert e.value.problems == [
+        "--cuda-graph runs one process on CUDA in fp32 (--device cuda, --precision fp32, no torchrun)"
+    ]
+
+
+@CUDA
+def test_a_graphed_run_on_cuda_trains_the_weights_of_an_eager_one(tmp_path: Path) -> None:
+    opts = {"seed": 0, "device": "cuda", "val_every": 10, "val_sets": _tiny_val(), "progress": None}
+    eager = train("p", 30, tmp_path / "eager", **opts)  # type: ignore[arg-type]
+    graphed = train("p", 30, tmp_path / "graph", cuda_graph=True, **opts)  # type: ignore[arg-type]
+    assert _rel_diff(_final(tmp_path / "graph"), _final(tmp_path / "eager")) <= 1e-3
+    np.testing.assert_allclose(graphed.losses, eager.losses, rtol=1e-3)
+    record = json.loads((tmp_path / "graph" / "dbox_p.json").read_text())
+    assert record["cuda_graph"] is True and record["data"] == "device"
+
+    class Stop(Exception):
+        pass
+
+    def stop(step: int, loss: float) -> None:
+        if step == 15:  # read at the check of step 20, before it: the state holds step 10
+            raise Stop
+
+    resumed = tmp_path / "resumed"
+    with pytest.raises(Stop):
+        train("p", 30, resumed, cuda_graph=True, on_step=stop, **opts)  # type: ignore[arg-type]
+    assert torch.load(resumed / "last.pt", weights_only=True)["step"] == 10
+    train("p", 30, resumed, cuda_graph=True, resume=True, **opts)  # type: ignore[arg-type]
+    assert _rel_diff(_final(resumed), _final(tmp_path / "eager")) <= 1e-3

@@ -102,9 +102,7 @@ def geometry(draws: Draws, config: GeneratorConfig) -> dict[str, torch.Tensor]:
     n, n_obs = u.shape[0], config.n_obs
     dev = u.device
     cam = config.camera
-    move_min = torch.tensor(config.move_min, dtype=torch.float64, device=dev)
-    move_max = torch.tensor(config.move_max, dtype=torch.float64, device=dev)
-    mm = config.move_max
+    lo, mm = config.move_min, config.move_max  # Python floats: no copy to the device per batch
     s_lo, s_hi = config.object_size
     z_lo, z_hi = config.initial_depth
     half = s_hi / 2
@@ -114,7 +112,7 @@ def geometry(draws: Draws, config: GeneratorConfig) -> dict[str, torch.Tensor]:
     cyn = cam.cy / cam.image_height
 
     size = s_lo + u[:, 6:8] * (s_hi - s_lo)
-    delta = move_min + u[:, 0:3] * (move_max - move_min)
+    delta = torch.stack([lo[k] + u[:, k] * (mm[k] - lo[k]) for k in range(3)], dim=1)
     delta = torch.where(u[:, 3:6] < 0.5, -delta, delta)
     z1 = z_lo + u[:, 8] * (z_hi - z_lo)
     room = z1 - mm[2]
@@ -155,10 +153,13 @@ def geometry(draws: Draws, config: GeneratorConfig) -> dict[str, torch.Tensor]:
         camera = coef
 
     if draws.replace is not None:
+        # Every example's box at its drawn observation, the donor's where hit: gathered
+        # before any is written, as numpy's fancy assignment does, and with no
+        # data-dependent shape (which would wait for the device).
         hit, obs, offset = draws.replace
-        donor = (torch.arange(n, device=dev) + offset) % n
-        rows = torch.nonzero(hit).flatten()
-        boxes[rows, obs[rows]] = boxes[donor[rows], obs[rows]]
+        index = torch.arange(n, device=dev)
+        donor = (index + offset) % n
+        boxes[index, obs] = torch.where(hit[:, None], boxes[donor, obs], boxes[index, obs])
     return {"boxes": boxes, "camera": camera, "depth": pos[:, -1, 2].clone()}
 
 

@@ -70,6 +70,7 @@ from odmd_bench_baselines.dbox.distributed import (
     shard,
 )
 from odmd_bench_baselines.dbox.distributed import resolve_device as _resolve_device
+from odmd_bench_baselines.dbox.graphs import GraphedStep, plain_optimizer_state
 from odmd_bench_baselines.dbox.model import DBox, make_inputs, predict_depth, reference_forward, use_onednn
 
 import odmd_bench
@@ -285,6 +286,7 @@ def train(
     precision: str = "fp32",
     dist_timeout: float = DEFAULT_TIMEOUT_S,
     data: str = "auto",
+    cuda_graph: bool = False,
 ) -> TrainResult:
     """Train DBox in one of the paper's configurations; keep the best model by validation.
 
@@ -324,6 +326,9 @@ def train(
             the shipped weights were trained on), ``device`` (the same generator in
             torch on the training device, :mod:`.device_data`: no copy per step, another
             random stream) or ``auto`` (``device`` on CUDA, ``host`` on the CPU).
+        cuda_graph: capture the training step in a CUDA graph and replay it
+            (:mod:`.graphs`; one process, CUDA, fp32): the same arithmetic with one
+            launch per step instead of hundreds.
 
     Under torchrun (``RANK``, ``WORLD_SIZE``, ``LOCAL_RANK`` set) the processes train one
     model together (see the module's docstring); ``batch_size`` is the global batch.
@@ -356,6 +361,10 @@ def train(
     _, world, _ = launch_ranks()
     if batch_size < world:
         problems.append(f"the batch of {batch_size} cannot be split among {world} processes")
+    if cuda_graph and (world > 1 or precision != "fp32" or _resolve_device(device).type != "cuda"):
+        problems.append(
+            "--cuda-graph runs one process on CUDA in fp32 (--device cuda, --precision fp32, no torchrun)"
+        )
     if problems:
         raise UsageError("invalid training options", problems)
     every = val_every if val_every is not None else max(steps // 100, 1)
@@ -389,7 +398,7 @@ def train(
         result = _run(
             ctx, cfg, steps, out, seed, every, resume, schedule, min_lr_ratio, lr, init, val_sets,
             batch_size, command, progress, progress_every, on_step, precision, state_path, weights_path,
-            data,
+            data, cuda_graph,
         )  # fmt: skip
         if owned:
             # Every process leaves together: one that tore its group down while process 0
@@ -423,6 +432,7 @@ def _run(
     state_path: Path,
     weights_path: Path,
     data: str,
+    cuda_graph: bool,
 ) -> TrainResult:
     """The training loop of :func:`train`, in each process, its options checked."""
     dev = ctx.device
@@ -446,7 +456,7 @@ def _run(
         settings["precision"] = precision
     if data != "host":  # likewise: runs before data on the device was one drew on the host
         settings["data"] = data
-    launch = _launch_record(ctx, batch_size)
+    launch = {**_launch_record(ctx, batch_size), "cuda_graph": cuda_graph}
     model = DBox(generator=torch.Generator().manual_seed(seed)).to(dev)
     if init is not None:
         from odmd_bench_baselines.dbox import load_model
@@ -523,25 +533,32 @@ def _run(
     cpu_base, wall0 = best["cpu_s"], time.perf_counter() - best["wall_s"]
     cpu0 = time.process_time()
     model.train()
+    graphed: GraphedStep | None = None
     while step < steps:
         rate = learning_rate(step, steps, schedule, min_lr_ratio, lr)
-        for group in optimizer.param_groups:
-            group["lr"] = rate
+        if graphed is None:
+            for group in optimizer.param_groups:
+                group["lr"] = rate
         if batches is not None:  # step t's batch depends on (seed, t) alone
             x, y = batches.batch(step, batch_size, rows)
         else:
             batch = odmd_bench.generate(batch_size, cfg.preset, cfg.perturbation, rng)
             x, y, _ = batch_tensors(batch, cfg.formulation, dev, rows)
-        try:
-            err = (net(x) - y).abs()
-            loss = err.sum() * share if ctx.distributed else err.mean()
-            optimizer.zero_grad(set_to_none=True)
-            loss.backward()  # DDP averages the gradients over the processes here
-        except RuntimeError as e:
-            if ctx.distributed:
-                raise collective_failure(ctx, step + 1, e) from None
-            raise
-        optimizer.step()
+        if cuda_graph:
+            if graphed is None:  # captured at the first step, with its batch for the warm-up
+                graphed = GraphedStep(net, optimizer, x, y, capture=True)
+            loss = graphed.step(x, y, rate)
+        else:
+            try:
+                err = (net(x) - y).abs()
+                loss = err.sum() * share if ctx.distributed else err.mean()
+                optimizer.zero_grad(set_to_none=True)
+                loss.backward()  # DDP averages the gradients over the processes here
+            except RuntimeError as e:
+                if ctx.distributed:
+                    raise collective_failure(ctx, step + 1, e) from None
+                raise
+            optimizer.step()
         step += 1
         pending.append(loss.detach())
         check = step % every == 0 or step == steps
@@ -699,7 +716,7 @@ def _save_state(
 ) -> None:
     state = {
         "model": model.state_dict(),
-        "optimizer": optimizer.state_dict(),
+        "optimizer": plain_optimizer_state(optimizer),
         "rng": json.dumps(rng.bit_generator.state),
         "step": step,
         "best": json.dumps(best),
