@@ -80,7 +80,7 @@ def _one_process(out: Path, steps: int, val_every: int, **kw: object) -> None:
 
 def _final(out: Path) -> dict[str, np.ndarray]:
     state = torch.load(out / "last.pt", weights_only=True)
-    return {k: v.numpy() for k, v in state["model"].items()}
+    return {k: v.cpu().numpy() for k, v in state["model"].items()}  # a CUDA run saves CUDA tensors
 
 
 def _rel_diff(a: dict[str, np.ndarray], b: dict[str, np.ndarray]) -> float:
