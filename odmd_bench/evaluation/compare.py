@@ -207,8 +207,8 @@ class SharedDraws:
     resamples (:func:`_rng`), never on the errors: boards of the same sets (odmd-paper
     and odmd-v1 have the same names and sizes) draw the same one. The first
     :class:`Resampled` given this object draws a stream and keeps it, compact (the
-    counts as the smallest unsigned integers that hold them, the sign bits packed: about
-    7 MB for 2,000 resamples of 3,000 examples); the next ones read it back, the same
+    counts as the smallest unsigned integers that hold them, the sign bits packed: 6.75
+    MB for 2,000 resamples of 3,000 examples); the next ones read it back, the same
     numbers, so that their results are bit for bit those of drawing again.
     """
 
