@@ -16,6 +16,7 @@ from odmd_bench.evaluation.compare import (
     B_BETTER,
     TIE,
     Resampled,
+    SharedDraws,
     compare_errors,
     compare_files,
     compare_results,
@@ -157,6 +158,46 @@ def test_resampled_compares_every_pair_as_compare_errors_does(n_resamples: int) 
     assert verdicts == {A_BETTER, B_BETTER, TIE}
     same = shared.compare("base", "same").all
     assert (same.difference, same.ci_low, same.ci_high, same.p_value) == (0.0, 0.0, 0.0, 1.0)
+
+
+@pytest.mark.parametrize("n_resamples", [2000, 601])
+def test_shared_draws_give_bit_for_bit_what_drawing_again_gives(
+    n_resamples: int, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Boards with sets of one name and size (the leaderboard's) draw each stream once."""
+    from odmd_bench.evaluation import compare
+
+    monkeypatch.setattr(compare, "_BLOCK_BYTES", 16 * 300 * 250 * 2)  # blocks of 500 resamples
+    drawn: list[int] = []
+    counted = compare._counted
+    monkeypatch.setattr(compare, "_counted", lambda n, *args: drawn.append(n) or counted(n, *args))
+    rng = np.random.default_rng(5)
+
+    def board(sizes: dict[str, int]) -> dict[str, dict[str, np.ndarray]]:
+        return {
+            m: {s: rng.gamma(2.0, 5.0, n) + shift for s, n in sizes.items()}
+            for m, shift in (("a", 0.0), ("b", 0.5))
+        }
+
+    boards = [
+        board({"normal": 300, "camera": 250}),
+        board({"normal": 300, "camera": 251, "robot": 120}),  # normal again; camera of another size
+        board({"camera": 250, "normal": 300}),
+    ]
+    kw = {"n_resamples": n_resamples, "seed": 3, "confidence": 0.9}
+    draws = SharedDraws()
+    shared = [Resampled(b, draws=draws, **kw) for b in boards]  # type: ignore[arg-type]
+    assert drawn == [300, 250, 251, 120]
+    for b, got in zip(boards, shared, strict=True):
+        fresh = Resampled(b, **kw)  # type: ignore[arg-type]
+        for s in b["a"]:
+            assert got._boot[s].tobytes() == fresh._boot[s].tobytes()
+            assert got._flip[s].tobytes() == fresh._flip[s].tobytes()
+        assert got.compare("a", "b") == fresh.compare("a", "b")
+    drawn.clear()
+    other = Resampled(boards[0], draws=draws, n_resamples=n_resamples, seed=4)  # another seed
+    assert drawn == [300, 250]
+    assert other.compare("a", "b") == Resampled(boards[0], n_resamples=n_resamples, seed=4).compare("a", "b")
 
 
 @pytest.mark.parametrize(

@@ -163,6 +163,114 @@ def test_any_bytes_give_parsed_predictions_or_a_validation_error(data: bytes) ->
     assert np.all(np.abs(p.depths) <= MAX_ABS_DEPTH)
 
 
+def _parse_both_ways(data: bytes, benchmark: str | None, block: int = 64) -> tuple[object, object, bool]:
+    """What parse_predictions gives (the result's fields, or the error) in bulk and row by row.
+
+    The bulk pass reads blocks of ``block`` characters (64: a small file spans several).
+    """
+    from unittest import mock
+
+    from odmd_bench.evaluation import rows
+
+    def outcome() -> object:
+        try:
+            p = parse_predictions(data, benchmark=benchmark, strict=False)
+        except ValidationError as e:
+            return ("error", e.message, e.problems)
+        arrays = [(a.dtype.str, a.tobytes()) for a in (p.codes, p.indices, p.depths, p.lines)]
+        fields = (p.name, p.sha256, p.benchmark, p.split, p.n_rows, p.ignored_columns, p.set_names)
+        return fields, arrays, p.nonpositive, p.problems.lines(), p.benchmark_column
+
+    taken = []
+    bulk = rows.Rows.add_clean
+
+    def spy(self: rows.Rows, *args: object) -> bool:
+        taken.append(bulk(self, *args))  # type: ignore[arg-type]
+        return taken[-1]
+
+    with mock.patch.object(rows, "_BLOCK_CHARS", block), mock.patch.object(rows.Rows, "add_clean", spy):
+        fast = outcome()
+    with mock.patch.object(rows.Rows, "add_clean", lambda self, *args: False):
+        slow = outcome()
+    return fast, slow, any(taken)
+
+
+_CLEAN_CELLS = {
+    "split": st.sampled_from(["test", "val"]),
+    "set": st.sampled_from(["normal", "camera", "robot", "Normal", "nope", ""]),
+    "index": st.integers(0, 10**6).map(str) | st.sampled_from(["007", "0" * 18]),
+    "depth": st.floats(-1e3, 1e6).map(repr) | st.sampled_from(["0", "-0.0", "1e3", ".5", "3.", "+2", "1E-2"]),
+    "benchmark": st.sampled_from(["odmd-v1", "odmd-paper"]),
+    "note": st.sampled_from(["", "x y", "a;b", "1"]),
+}
+# Each turns a clean file into one the bulk pass must leave to the row-by-row pass (or not).
+_EDITS = [
+    lambda s: s,
+    lambda s: s[:-2] + '"' + s[-2:],
+    lambda s: s.replace("\n", "\n\n", 1),
+    lambda s: s + "\n \n",
+    lambda s: s[: s.index("\n") + 1] + s[s.index("\n") + 1 :].replace("\n", "\r", 1),  # a lone \r
+    lambda s: s.replace("\n", "\n,,,,,,\n", 1),
+    lambda s: s.replace(",", ",,", 2),
+    lambda s: s.replace("test", " test", 1),
+    lambda s: s.replace("normal", "normal\t", 1),
+    lambda s: s.replace("test", "tëst", 1),
+    lambda s: s.replace("0", "nan", 1),
+    lambda s: s.replace("1", "1e999", 1),
+    lambda s: s.replace("2", "2_0", 1),
+    lambda s: s.replace(",1,", ",+1,", 1),
+    lambda s: s.replace("4", "", 1),
+    lambda s: s.replace("5", "x", 1),
+    lambda s: s.replace("odmd-v1", "odmd-v2", 1),
+    lambda s: s.replace("val", "train", 1),
+]
+
+
+@st.composite
+def _prediction_files(draw: st.DrawFn) -> tuple[str, bool]:
+    extra = draw(st.sampled_from([[], ["benchmark"], ["note"], ["benchmark", "note"]]))
+    columns = draw(st.permutations(["split", "set", "index", "depth", *extra]))
+    rows = draw(
+        st.lists(st.tuples(*(_CLEAN_CELLS[c] for c in columns)).map(",".join), min_size=1, max_size=30)
+    )
+    end = draw(st.sampled_from(["\n", "\r\n"]))
+    text = end.join([",".join(columns), *rows]) + draw(st.sampled_from([end, ""]))
+    edit = draw(st.sampled_from(range(len(_EDITS))))
+    return _EDITS[edit](text), edit == 0
+
+
+@settings(max_examples=150, deadline=None)
+@given(_prediction_files(), st.sampled_from([None, "odmd-v1"]))
+def test_clean_files_read_in_bulk_give_what_row_by_row_gives(
+    file: tuple[str, bool], benchmark: str | None
+) -> None:
+    text, clean = file
+    fast, slow, bulk = _parse_both_ways(text.encode(), benchmark)
+    assert fast == slow
+    if clean:  # (an edited file may be clean too, or be left to the rows)
+        assert bulk
+
+
+_CLEAN = (
+    "split,set,index,depth,benchmark,note\n"
+    "test,normal,0,1.25,odmd-v1,a\ntest,camera,1,-0.5,odmd-v1,\nval,robot,12,3.0e2,odmd-v1,x y\n"
+    "test,normal,4,0,odmd-v1,1\ntest,normal,5,7.,odmd-v1,b\n"
+)
+
+
+@pytest.mark.parametrize("edit", range(len(_EDITS)))
+def test_each_unclean_row_is_left_to_the_row_by_row_pass(edit: int) -> None:
+    fast, slow, bulk = _parse_both_ways(_EDITS[edit](_CLEAN).encode(), None)
+    assert fast == slow
+    assert bulk == (edit == 0)
+
+
+def test_a_committed_entry_is_read_in_bulk_as_row_by_row() -> None:
+    path = Path(__file__).resolve().parents[1] / "leaderboard/entries/box-ls/odmd-v1-test/predictions.csv.gz"
+    fast, slow, bulk = _parse_both_ways(path.read_bytes(), None, block=50_000)  # 5 blocks
+    assert bulk and fast == slow
+
+
 # --- overflow and strict JSON -----------------------------------------------------
 
 

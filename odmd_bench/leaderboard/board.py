@@ -16,7 +16,7 @@ import numpy as np
 from odmd_bench.data.examples import Examples
 from odmd_bench.data.registry import get_benchmark, set_file
 from odmd_bench.errors import DataError, OdmdError, ValidationError
-from odmd_bench.evaluation.compare import PairedDifference
+from odmd_bench.evaluation.compare import PairedDifference, SharedDraws
 from odmd_bench.evaluation.scoring import EvaluationResult
 from odmd_bench.leaderboard.entry import Entry
 from odmd_bench.leaderboard.files import discover, read_entry, read_predictions_bytes
@@ -239,6 +239,7 @@ def _score_board(
     data_dir: str | os.PathLike[str] | None,
     original: str | os.PathLike[str] | None,
     n_resamples: int | None,
+    draws: SharedDraws,
 ) -> tuple[Board | None, list[str]]:
     """One board from its entries (an empty board needs no data)."""
     if not entries:
@@ -259,7 +260,8 @@ def _score_board(
     problems += _copies(spec, scored)
     if not scored:
         return None, problems
-    ranked = rank_groups({m: r.percent_errors() for m, (_, r) in scored.items()}, n_resamples=n_resamples)
+    errors = {m: r.percent_errors() for m, (_, r) in scored.items()}
+    ranked = rank_groups(errors, n_resamples=n_resamples, draws=draws)
     rows = tuple(Row(*scored[x.key], x.group, x.leader, x.versus_leader, x.versus_previous) for x in ranked)
     hashes = {s: str(ex.attrs["content_sha256"]) for s, ex in examples.items()}
     return Board(spec, hashes, data_version(examples), rows), problems
@@ -302,10 +304,11 @@ def collect(
         except ValidationError as err:
             problems += _problem_lines(err)
     boards: list[Board] = []
+    draws = SharedDraws()  # boards of the same sets rank on the same draws: made once
     for spec in BOARDS:
         mine = [e for e in entries if (e.benchmark, e.split) == (spec.benchmark, spec.split)]
         start = time.perf_counter()
-        board, found = _score_board(spec, mine, data_dir, original, n_resamples)
+        board, found = _score_board(spec, mine, data_dir, original, n_resamples, draws)
         problems += found
         if progress is not None:
             progress(_progress_line(spec, len(mine), len(found), time.perf_counter() - start))

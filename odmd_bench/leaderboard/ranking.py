@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
-from odmd_bench.evaluation.compare import TIE, PairedDifference, Resampled
+from odmd_bench.evaluation.compare import TIE, PairedDifference, Resampled, SharedDraws
 
 #: Settings of the paired comparison that forms rank groups.
 RANK_RESAMPLES = 2000
@@ -61,6 +61,7 @@ def rank_groups(
     n_resamples: int | None = None,
     seed: int = RANK_SEED,
     confidence: float = RANK_CONFIDENCE,
+    draws: SharedDraws | None = None,
 ) -> list[Ranked]:
     """Sort methods by All and form rank groups.
 
@@ -70,6 +71,8 @@ def rank_groups(
         n_resamples: resamples of the paired comparison (default :data:`RANK_RESAMPLES`).
         seed: its seed.
         confidence: its confidence level.
+        draws: the draws kept for, and from, the other boards
+            (:class:`~odmd_bench.evaluation.compare.SharedDraws`; the same groups).
 
     Returns:
         The rows, best first.
@@ -98,7 +101,7 @@ def rank_groups(
             continue
         group, leader = out[-1].group, out[-1].leader
         if shared is None:
-            shared = Resampled(errors, n_resamples=n, seed=seed, confidence=confidence)
+            shared = Resampled(errors, n_resamples=n, seed=seed, confidence=confidence, draws=draws)
         c = shared.compare(leader, k)
         if c.all.verdict == TIE:
             out.append(Ranked(k, means[k], group, leader, versus_leader=c.all))
