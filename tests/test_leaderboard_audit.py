@@ -214,7 +214,7 @@ def test_fresh_sets_are_the_committed_sets_distribution_with_new_seeds() -> None
         assert a.attrs["content_sha256"] != b.attrs["content_sha256"]
     # default: REPEATS draws of the committed size, the CLI's default too
     assert [len(ex) for ex in au.fresh_sets(1)["camera"]] == [pins["camera"]["n"]] * au.REPEATS
-    (repeats,) = [p for p in cli.commands["leaderboard"].commands["audit"].params if p.name == "repeats"]  # type: ignore[attr-defined]
+    (repeats,) = [p for p in cli.commands["leaderboard"].commands["audit"].params if p.name == "repeats"]
     assert repeats.default == au.REPEATS == 5
 
 
