@@ -27,6 +27,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -37,7 +38,7 @@ from odmd_bench.leaderboard.audit import LEVEL, collect_errors
 ROOT = Path(__file__).resolve().parents[1] / "leaderboard"
 #: Entries x tests of the recorded audit's Holm family (10 entries, three sets and all).
 TESTS = 40
-STATISTICS = {
+STATISTICS: dict[str, Callable[[np.ndarray], Any]] = {
     "mean": np.mean,
     "median": np.median,
     "q99": lambda x: np.quantile(x, 0.99),
@@ -99,8 +100,8 @@ def main() -> None:
         methods = [found.rows[i]["method"] for i in found.audited]
         for k, m in enumerate(methods):
             committed.setdefault(m, {s: c[:, k] for s, c in found.committed.items()})
-            for s, f in found.fresh.items():
-                fresh[m].setdefault(s, []).append(f[:, k])
+            for s, errors in found.fresh.items():
+                fresh[m].setdefault(s, []).append(errors[:, k])
     rng = np.random.default_rng(0)
     entries = {}
     for m in only:

@@ -16,9 +16,10 @@ default); with ``--fresh-vs-fresh`` K + 1 are drawn, the first in the committed 
 
 Writes ``--out`` (JSON: per seed, the flagged entries and raw p-values; the summary) and
 prints the summary. Slow (every DBox configuration re-run per seed: about a minute per
-seed on 2 cores); run it with ``nice`` (output: docs/audit_rates.json)::
+seed on 2 cores with five draws); run it with ``nice`` (output: docs/audit_rates.json)::
 
-    nice -n 19 python scripts/audit_rates.py --seeds 1-50 --power-seeds 20 --original ../shared/odmd-original
+    nice -n 19 python scripts/audit_rates.py --seeds 1-50 --power-seeds 10 --jobs 2 \
+        --original ../shared/odmd-original --only box-ls,parallax,expansion,robust,dbox,dbox-p-z,dbox-p-z-per-set
 """
 
 from __future__ import annotations
