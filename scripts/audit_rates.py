@@ -11,12 +11,15 @@ committed mean drops by about ``q`` times itself; a flagged entry is then a dete
 With ``--fresh-vs-fresh`` each seed draws two fresh sets and tests one against the
 other, as if the first were the committed set: honest by construction on both sides,
 so the flags count the test's own false alarms, free of how the committed draw fell.
+``--repeats K`` pools K fresh draws per set as the audit does (default: the audit's
+default); with ``--fresh-vs-fresh`` K + 1 are drawn, the first in the committed set's place.
 
 Writes ``--out`` (JSON: per seed, the flagged entries and raw p-values; the summary) and
 prints the summary. Slow (every DBox configuration re-run per seed: about a minute per
-seed on 2 cores); run it with ``nice`` (output: docs/audit_rates.json)::
+seed on 2 cores with five draws); run it with ``nice`` (output: docs/audit_rates.json)::
 
-    nice -n 19 python scripts/audit_rates.py --seeds 1-50 --power-seeds 20 --original ../shared/odmd-original
+    nice -n 19 python scripts/audit_rates.py --seeds 1-50 --power-seeds 10 --jobs 2 \
+        --original ../shared/odmd-original --only box-ls,parallax,expansion,robust,dbox,dbox-p-z,dbox-p-z-per-set
 """
 
 from __future__ import annotations
@@ -30,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from odmd_bench.leaderboard.audit import Collected, assess, collect_errors, flagged
+from odmd_bench.leaderboard.audit import REPEATS, Collected, assess, collect_errors, flagged
 
 ROOT = Path(__file__).resolve().parents[1] / "leaderboard"
 #: Fractions of committed examples whose error is set to 0.
@@ -55,13 +58,13 @@ def planted(found: Collected, q: float, seed: int) -> Collected:
     return Collected(found.header, found.rows, found.audited, committed, found.fresh)
 
 
-def fresh_vs_fresh(found: Collected) -> Collected:
-    """Two fresh draws (``repeats=2``) as the committed set and the fresh one: honest by construction."""
+def fresh_vs_fresh(found: Collected, repeats: int) -> Collected:
+    """``repeats + 1`` fresh draws: the first as the committed set, the rest as the fresh ones (honest by construction)."""
     committed, fresh = {}, {}
     for s, f in found.fresh.items():
-        n = len(f) // 2
+        n = len(f) // (repeats + 1)
         committed[s], fresh[s] = f[:n], f[n:]
-    return Collected({**found.header, "repeats": 1}, found.rows, found.audited, committed, fresh)
+    return Collected({**found.header, "repeats": repeats}, found.rows, found.audited, committed, fresh)
 
 
 def _summary(result: dict[str, Any]) -> dict[str, Any]:
@@ -93,6 +96,12 @@ def main() -> None:
         help="test two fresh draws against each other instead of the committed sets against one: "
         "the test's false-alarm rate over draws of both sides, free of the committed draw",
     )
+    parser.add_argument(
+        "--repeats",
+        type=int,
+        default=REPEATS,
+        help=f"fresh draws per set, pooled (default {REPEATS}, the audit's)",
+    )
     parser.add_argument("--only", default=None, help="audit these entries alone (comma-separated method ids)")
     parser.add_argument("--out", type=Path, default=Path("docs/audit_rates.json"))
     args = parser.parse_args()
@@ -114,12 +123,12 @@ def _one(job: tuple[int, bool, argparse.Namespace]) -> dict[str, Any]:
     seed, power, args = job
     start = time.perf_counter()
     only = args.only.split(",") if args.only else None
-    repeats = 2 if args.fresh_vs_fresh else 1
+    drawn = args.repeats + 1 if args.fresh_vs_fresh else args.repeats
     found = collect_errors(
-        ROOT, seed, repeats=repeats, data_dir=args.data_dir, original=args.original, only=only
+        ROOT, seed, repeats=drawn, data_dir=args.data_dir, original=args.original, only=only
     )
     if args.fresh_vs_fresh:
-        found = fresh_vs_fresh(found)
+        found = fresh_vs_fresh(found, args.repeats)
     run: dict[str, Any] = {"seed": seed, "honest": _summary(assess(found))}
     if power:
         run["planted"] = {str(q): _summary(assess(planted(found, q, seed))) for q in FRACTIONS}
@@ -142,6 +151,7 @@ def _write(out: Path, runs: list[dict[str, Any]], args: argparse.Namespace) -> N
     summary = {
         "command": f"python scripts/audit_rates.py --seeds {args.seeds} --power-seeds {args.power_seeds}"
         + (" --original ORIGINAL" if args.original else "")
+        + f" --repeats {args.repeats}"
         + (f" --only {args.only}" if args.only else "")
         + (" --fresh-vs-fresh" if args.fresh_vs_fresh else "")
         + (f" --jobs {args.jobs}" if args.jobs != 1 else ""),

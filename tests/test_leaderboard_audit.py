@@ -212,7 +212,10 @@ def test_fresh_sets_are_the_committed_sets_distribution_with_new_seeds() -> None
         assert a.attrs["content_sha256"] == again[s][0].attrs["content_sha256"]  # same seed, same sets
         assert a.attrs["content_sha256"] != other[s][0].attrs["content_sha256"]
         assert a.attrs["content_sha256"] != b.attrs["content_sha256"]
-    assert len(au.fresh_sets(1)["camera"][0]) == pins["camera"]["n"]  # default: the committed size
+    # default: REPEATS draws of the committed size, the CLI's default too
+    assert [len(ex) for ex in au.fresh_sets(1)["camera"]] == [pins["camera"]["n"]] * au.REPEATS
+    (repeats,) = [p for p in cli.commands["leaderboard"].commands["audit"].params if p.name == "repeats"]
+    assert repeats.default == au.REPEATS == 5
 
 
 @pytest.mark.parametrize("bad", [-1, 2**53 + 1, 1.5, True, "3"])
@@ -224,12 +227,12 @@ def test_bad_seeds_are_refused(bad: Any) -> None:
 # ------------------------------------------------------------------- the test
 
 
-@pytest.mark.parametrize("m", [60, 120, 45], ids=["pairs", "blocks-of-3", "subsets"])
+@pytest.mark.parametrize("m", [60, 120, 300, 45], ids=["pairs", "blocks-of-3", "blocks-of-6", "subsets"])
 def test_permutation_p_values_are_exact_under_the_null_even_for_heavy_tails(m: int) -> None:
     """Committed and fresh errors from one heavy-tailed law: P(p <= a) <= a, for every a.
 
-    ``m`` fresh examples against 60 committed: one and two whole repeats (relabelled
-    within blocks), and a size that is not a multiple (random subsets).
+    ``m`` fresh examples against 60 committed: one, two and five (the default) whole
+    repeats (relabelled within blocks), and a size that is not a multiple (random subsets).
     """
     rng = np.random.default_rng(3)
     n, reps = 60, 400
@@ -326,7 +329,8 @@ def test_the_command_exits_1_on_a_flag_and_records_what_it_prints(recorded: tupl
     assert run.exit_code == 1, run.output  # flagged: a CI gate
     assert audit_path(root, 3).read_text() == run.stdout  # the record is what was printed
     result = json.loads(run.stdout)
-    assert result["seed"] == 3 and result["fresh_seeds"]["normal"] == [au.fresh_seed(3, 0, 0)]
+    assert result["seed"] == 3 and result["repeats"] == au.REPEATS
+    assert result["fresh_seeds"]["normal"] == [au.fresh_seed(3, r, 0) for r in range(au.REPEATS)]
     table = au.audit_table(result)
     assert "flagged: memorise" in table and "memorise               all          0.00" in table
     assert "re-running memorise (memorise) on the fresh sets" in run.stderr
@@ -414,19 +418,13 @@ def test_the_committed_audit_matches_the_board() -> None:
     assert all(r["audit"] is not None for r in bd["rows"])
 
 
-#: Entries whose committed draw suits them better than fresh draws do, so that the audit flags
-#: them on some seeds although their weights were selected on val (leaderboard/README.md,
-#: "Rates measured": dbox-p-z-per-set on seeds 103 and 107 of these ten, and on seed 3 of 1 to 50).
-FAVOURED_BY_THE_DRAW = {"dbox-p-z-per-set"}
-
-
 @pytest.mark.slow
 @pytest.mark.parametrize("seed", range(101, 111))
 def test_the_honest_entries_of_the_committed_board_are_flagged_on_no_seed(
     seed: int, v1_data_dir: Path, original_release: Path
 ) -> None:
-    """Box_LS, parallax, expansion, robust and every shipped DBox configuration, full-size sets."""
+    """Box_LS, parallax, expansion, robust and every shipped DBox configuration; full-size sets, REPEATS draws."""
     pytest.importorskip("torch")
     result = au.audit(BOARD, seed, data_dir=v1_data_dir, original=original_release)
     assert all(e["runnable"] for e in result["entries"]), [e["reason"] for e in result["entries"]]
-    assert set(au.flagged(result)) <= FAVOURED_BY_THE_DRAW
+    assert au.flagged(result) == []

@@ -214,10 +214,10 @@ def site_command(
 @_root_option
 @click.option(
     "--repeats",
-    default=1,
+    default=5,  # odmd_bench.leaderboard.audit.REPEATS (a test checks that they agree)
     show_default=True,
     type=click.IntRange(1, 100),
-    help="Fresh draws per set, pooled.",
+    help="Fresh draws per set, pooled (more draws: fewer chance flags, more power, longer).",
 )
 @click.option(
     "--size",

@@ -50,6 +50,13 @@ BENCHMARK = "odmd-v1"
 SPLIT = "test"
 #: Family-wise level: the chance that an audit flags any honest entry is at most this.
 LEVEL = 0.01
+#: Fresh draws per set by default, pooled. Every audit of a board meets the same committed
+#: draw, which lies by chance some way from each entry's true mean; one fresh draw adds as
+#: much noise again, so an honest entry that the committed draw happens to favour was
+#: flagged whenever its fresh draw fell the other way (leaderboard/README.md, "Rates
+#: measured"). Five draws cut the fresh side's noise to sqrt(1/5) of the committed
+#: side's, and raise the power.
+REPEATS = 5
 #: Fewest permutations per test; more where the Holm threshold needs smaller p-values.
 PERMUTATIONS = 9_999
 #: Bootstrap resamples of the fresh means' intervals, and their confidence.
@@ -115,7 +122,7 @@ def generated_sets(benchmark: str = BENCHMARK, split: str = SPLIT) -> dict[str, 
 
 
 def fresh_sets(
-    seed: int, repeats: int = 1, size: int | None = None, benchmark: str = BENCHMARK
+    seed: int, repeats: int = REPEATS, size: int | None = None, benchmark: str = BENCHMARK
 ) -> dict[str, list[Examples]]:
     """Fresh draws of the generated test sets: ``{set: [examples of each repeat]}``.
 
@@ -453,7 +460,7 @@ def audit(
     root: str | os.PathLike[str],
     seed: int,
     *,
-    repeats: int = 1,
+    repeats: int = REPEATS,
     size: int | None = None,
     data_dir: str | os.PathLike[str] | None = None,
     original: str | os.PathLike[str] | None = None,
@@ -466,7 +473,7 @@ def audit(
     Args:
         root: the leaderboard folder.
         seed: the audit's seed (fresh sets, permutations, bootstrap).
-        repeats: fresh draws per set, pooled.
+        repeats: fresh draws per set, pooled (default :data:`REPEATS`).
         size: examples per fresh set (default: as many as the committed set).
         data_dir: the data folder (the committed sets; generated if missing).
         original: the original release's folder (weights written ``ODMD/...``).
@@ -518,7 +525,7 @@ def collect_errors(
     root: str | os.PathLike[str],
     seed: int,
     *,
-    repeats: int = 1,
+    repeats: int = REPEATS,
     size: int | None = None,
     data_dir: str | os.PathLike[str] | None = None,
     original: str | os.PathLike[str] | None = None,
@@ -772,6 +779,7 @@ __all__ = [
     "CONFIDENCE",
     "LEVEL",
     "PERMUTATIONS",
+    "REPEATS",
     "SPLIT",
     "Target",
     "Collected",
