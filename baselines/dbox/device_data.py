@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from odmd_bench.data.config import GeneratorConfig, check_perturbation, get_preset
+from odmd_bench import PRESETS, GeneratorConfig, UsageError
 
 #: Where ``train-dbox`` generates its batches: ``host`` (numpy on the CPU, the stream the
 #: shipped weights were trained on) or ``device`` (this module, on the training device).
@@ -191,8 +191,9 @@ class DeviceBatches:
     def __init__(
         self, preset: str, perturbation: str, formulation: str, seed: int, device: torch.device
     ) -> None:
-        check_perturbation(perturbation)
-        self.config = get_preset(preset)
+        if preset not in PRESETS or perturbation not in ("normal", "camera", "object", "both"):
+            raise UsageError(f"no generator preset {preset!r} with perturbation {perturbation!r}")
+        self.config = PRESETS[preset]
         self.perturbation = perturbation
         self.formulation = formulation
         self.seed = seed
