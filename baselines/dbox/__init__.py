@@ -29,12 +29,12 @@ Importing this package does not import torch; the functions do.
 
 from __future__ import annotations
 
+from odmd_bench_baselines.dbox.configs import OBSERVATIONS
 from odmd_bench_baselines.dbox.method import predict, predict_report, provenance
 from odmd_bench_baselines.dbox.weights import (
     CONFIGS,
     DEFAULT_WEIGHTS,
     MAX_WEIGHTS_BYTES,
-    OBSERVATIONS,
     SELECTIONS,
     VAL_BENCHMARK,
     WEIGHTS_DIR,

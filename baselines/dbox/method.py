@@ -6,8 +6,8 @@ import copy
 import os
 
 import numpy as np
+from odmd_bench_baselines.dbox.configs import OBSERVATIONS
 from odmd_bench_baselines.dbox.weights import (
-    OBSERVATIONS,
     _load,
     default_config,
     lateral_examples,

@@ -38,7 +38,7 @@ from typing import Any
 
 import numpy as np
 import torch
-from odmd_bench_baselines.dbox.weights import OBSERVATIONS
+from odmd_bench_baselines.dbox.configs import OBSERVATIONS
 from torch import nn
 
 from odmd_bench import DataError, Examples, UsageError, fill_missing

@@ -56,7 +56,10 @@ from typing import Any, TextIO
 
 import numpy as np
 import torch
-from odmd_bench_baselines.dbox import load_failure, per_set_path
+from odmd_bench_baselines.dbox.configs import (
+    CONFIGS as CONFIGS,  # the training configurations, named here too
+)
+from odmd_bench_baselines.dbox.configs import TrainConfig, get_config
 from odmd_bench_baselines.dbox.device_data import DATA_SOURCES, DeviceBatches
 from odmd_bench_baselines.dbox.distributed import (
     DEFAULT_TIMEOUT_S,
@@ -72,6 +75,7 @@ from odmd_bench_baselines.dbox.distributed import (
 from odmd_bench_baselines.dbox.distributed import resolve_device as _resolve_device
 from odmd_bench_baselines.dbox.graphs import GraphedStep, plain_optimizer_state
 from odmd_bench_baselines.dbox.model import DBox, make_inputs, predict_depth, reference_forward, use_onednn
+from odmd_bench_baselines.dbox.weights import load_failure, load_model, per_set_path
 
 import odmd_bench
 from odmd_bench import (
@@ -92,44 +96,6 @@ SCHEDULES = ("cosine", "constant")
 #: precision (bfloat16 products), the loss, gradients, Adam and validation in float32.
 PRECISIONS = ("fp32", "bf16")
 STATE_FILE = "last.pt"
-
-
-@dataclass(frozen=True)
-class TrainConfig:
-    """One of the paper's training configurations.
-
-    Attributes:
-        name: ``p``, ``ns``, ``abs``, ``p-z``, ``ns-z`` or ``abs-z``.
-        preset: generator preset (``odmd`` or ``odms``).
-        perturbation: generator perturbation (``normal`` or ``both``).
-        formulation: ``rel`` (f_Rel) or ``abs`` (f_Abs).
-        val_benchmark: benchmark whose ``val`` split selects the model.
-    """
-
-    name: str
-    preset: str
-    perturbation: str
-    formulation: str
-    val_benchmark: str
-
-
-CONFIGS: dict[str, TrainConfig] = {
-    "p": TrainConfig("p", "odmd", "both", "rel", "odmd-v1"),
-    "ns": TrainConfig("ns", "odmd", "normal", "rel", "odmd-v1"),
-    "abs": TrainConfig("abs", "odmd", "both", "abs", "odmd-v1"),
-    # z-only motion for ODMS (the paper's DBox_p^z, DBox_NS^z, DBox_Abs^z); selected on
-    # the ODMS-detection val sets (imported).
-    "p-z": TrainConfig("p-z", "odms", "both", "rel", "odms-detection"),
-    "ns-z": TrainConfig("ns-z", "odms", "normal", "rel", "odms-detection"),
-    "abs-z": TrainConfig("abs-z", "odms", "both", "abs", "odms-detection"),
-}
-
-
-def get_config(name: str) -> TrainConfig:
-    """The training configuration called ``name``."""
-    if name not in CONFIGS:
-        raise UsageError(f"unknown DBox config {name!r}; expected one of {', '.join(CONFIGS)}")
-    return CONFIGS[name]
 
 
 def learning_rate(
@@ -459,8 +425,6 @@ def _run(
     launch = {**_launch_record(ctx, batch_size), "cuda_graph": cuda_graph}
     model = DBox(generator=torch.Generator().manual_seed(seed)).to(dev)
     if init is not None:
-        from odmd_bench_baselines.dbox import load_model
-
         start, _ = load_model(init)
         model.load_state_dict(start.state_dict())
     optimizer = make_optimizer(model, lr)

@@ -16,14 +16,13 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from odmd_bench_baselines.dbox.configs import CONFIGS as TRAIN_CONFIGS
 
 from odmd_bench import MAX_ABS_WEIGHT, DataError, Examples, UsageError, known_originals
 
 if TYPE_CHECKING:
     from odmd_bench_baselines.dbox.model import DBox
 
-#: Observations per example the network takes (its input layer is sized for 10).
-OBSERVATIONS = 10
 WEIGHTS_DIR = Path(__file__).resolve().parent / "weights"
 #: The paper's six training configurations.
 CONFIGS = ("p", "abs", "ns", "p-z", "ns-z", "abs-z")
@@ -412,7 +411,6 @@ def _formulation(path: Path, sha: str) -> str:
             its configuration or with the shipped file's.
     """
     from odmd_bench_baselines.dbox.model import FORMULATIONS
-    from odmd_bench_baselines.dbox.train import CONFIGS as TRAIN_CONFIGS
 
     shipped = _shipped_config(path, sha)
     record = path.with_suffix(".json")
