@@ -197,11 +197,15 @@ def train_dbox(
         data=data,
         cuda_graph=cuda_graph,
     )
-    if os.environ.get("RANK", "0") != "0":  # process 0 reports; the others did not validate
-        return
-    scores = ", ".join(f"{k} {v:.3f}" for k, v in result.best_scores.items())
-    click.echo(f"best step {result.best_step}: val mean percent error {scores}")
-    click.echo(f"weights: {result.weights}")
+    from odmd_bench_baselines.dbox.distributed import launch_ranks, leave
+
+    rank, world, _ = launch_ranks()
+    if rank == 0:  # process 0 reports; the others did not validate
+        scores = ", ".join(f"{k} {v:.3f}" for k, v in result.best_scores.items())
+        click.echo(f"best step {result.best_step}: val mean percent error {scores}")
+        click.echo(f"weights: {result.weights}")
+    if world > 1:  # under torchrun: done, without the C++ runtime's teardown (see leave)
+        leave()
 
 
 @click.command(name="select-dbox")
