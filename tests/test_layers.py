@@ -34,11 +34,11 @@ LAYERS: dict[str, int] = {
 }
 
 
-def _modules() -> dict[str, Path]:
-    """``{dotted name: file}`` of every module of the package (a package by its ``__init__``)."""
+def _modules(root: Path = PACKAGE, package: str = "odmd_bench") -> dict[str, Path]:
+    """``{dotted name: file}`` of every module of a package (a package by its ``__init__``)."""
     out = {}
-    for path in sorted(PACKAGE.rglob("*.py")):
-        parts = ["odmd_bench", *path.relative_to(PACKAGE).with_suffix("").parts]
+    for path in sorted(root.rglob("*.py")):
+        parts = [package, *path.relative_to(root).with_suffix("").parts]
         if parts[-1] == "__init__":
             parts.pop()
         out[".".join(parts)] = path
@@ -53,21 +53,31 @@ def _part(module: str) -> str:
     return module.split(".")[1] if "." in module else ""
 
 
-def _imports(path: Path) -> Iterator[tuple[int, str]]:
-    """``(line, module)`` of every import of this package in a file, resolved to a module.
+def _imports(path: Path, modules: dict[str, Path] | None = None) -> Iterator[tuple[int, str]]:
+    """``(line, module)`` of every import of a package's modules in a file, resolved to a module.
 
     ``from odmd_bench import methods`` imports the module ``odmd_bench.methods``;
-    ``from odmd_bench import load`` the package itself (its ``__init__``).
+    ``from odmd_bench import load`` the package itself (its ``__init__``). ``modules``:
+    the package's modules (default: odmd_bench's); relative imports are resolved.
     """
+    modules = MODULES if modules is None else modules
+    me = next((m for m, p in modules.items() if p == path), "")
+    here = me if path.name == "__init__.py" else me.rpartition(".")[0]
     for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
         if isinstance(node, ast.Import):
             names = [a.name for a in node.names]
-        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
-            names = [f"{node.module}.{a.name}" for a in node.names]
+        elif isinstance(node, ast.ImportFrom) and (node.level or node.module):
+            base = node.module or ""
+            if node.level:
+                up = here
+                for _ in range(node.level - 1):
+                    up = up.rpartition(".")[0]
+                base = f"{up}.{base}" if base else up
+            names = [f"{base}.{a.name}" for a in node.names]
         else:
             continue
         for name in names:
-            while name and name not in MODULES:
+            while name and name not in modules:
                 name = name.rpartition(".")[0]
             if name:
                 yield node.lineno, name
@@ -166,37 +176,9 @@ BASELINES = PACKAGE.parent / "baselines"
 
 
 def _baseline_edges() -> dict[str, set[str]]:
-    """``{module: modules of odmd_bench_baselines it imports}``, relative imports resolved."""
-    modules = {}
-    for path in sorted(BASELINES.rglob("*.py")):
-        parts = ["odmd_bench_baselines", *path.relative_to(BASELINES).with_suffix("").parts]
-        if parts[-1] == "__init__":
-            parts.pop()
-        modules[".".join(parts)] = path
-    edges: dict[str, set[str]] = {}
-    for module, path in modules.items():
-        package = module if path.name == "__init__.py" else module.rpartition(".")[0]
-        targets = set()
-        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
-            if isinstance(node, ast.Import):
-                names = [a.name for a in node.names]
-            elif isinstance(node, ast.ImportFrom):
-                base = node.module or ""
-                if node.level:
-                    up = package
-                    for _ in range(node.level - 1):
-                        up = up.rpartition(".")[0]
-                    base = f"{up}.{base}" if base else up
-                names = [f"{base}.{a.name}" for a in node.names]
-            else:
-                continue
-            for name in names:
-                while name and name not in modules:
-                    name = name.rpartition(".")[0]
-                if name and name != module:
-                    targets.add(name)
-        edges[module] = targets
-    return edges
+    """``{module: modules of odmd_bench_baselines it imports}``."""
+    modules = _modules(BASELINES, "odmd_bench_baselines")
+    return {m: {t for _, t in _imports(p, modules) if t != m} for m, p in modules.items()}
 
 
 def test_the_baselines_import_each_other_in_no_circle() -> None:
