@@ -242,3 +242,30 @@ def test_a_graphed_run_on_cuda_trains_the_weights_of_an_eager_one(tmp_path: Path
     assert torch.load(resumed / "last.pt", weights_only=True)["step"] == 10
     train("p", 30, resumed, cuda_graph=True, resume=True, **opts)  # type: ignore[arg-type]
     assert _rel_diff(_final(resumed), _final(tmp_path / "eager")) <= 1e-3
+
+
+def test_a_graphed_step_continues_a_run_that_has_adams_state() -> None:
+    """Captured mid-run (a resumed run): the warm-up's undoing restores Adam's moments and step count."""
+    from odmd_bench_baselines.dbox.graphs import GraphedStep
+    from odmd_bench_baselines.dbox.model import DBox
+    from odmd_bench_baselines.dbox.train import make_optimizer
+
+    source = device_data.DeviceBatches("odmd", "both", "rel", 1, torch.device("cpu"))
+    batches = [source.batch(t, 32) for t in range(6)]
+    rates = [1e-3] * 6
+    plain = DBox(generator=torch.Generator().manual_seed(2))
+    _steps_eager(plain, batches, rates)
+    resumed = DBox(generator=torch.Generator().manual_seed(2))
+    opt = make_optimizer(resumed)
+    for (x, y), rate in zip(batches[:3], rates[:3], strict=True):  # the run before its interruption
+        for group in opt.param_groups:
+            group["lr"] = rate
+        opt.zero_grad(set_to_none=True)
+        (resumed(x) - y).abs().mean().backward()
+        opt.step()
+    step = GraphedStep(resumed, opt, *batches[3], capture=False)
+    for (x, y), rate in zip(batches[3:], rates[3:], strict=True):
+        step.step(x, y, rate)
+    for a, b in zip(plain.parameters(), resumed.parameters(), strict=True):
+        torch.testing.assert_close(a, b, rtol=1e-4, atol=1e-6)
+    assert float(next(iter(opt.state.values()))["step"]) == 6
