@@ -9,6 +9,7 @@ a usage error naming the extra to install.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import click
 
@@ -85,13 +86,7 @@ def baseline(
     split: str,
     output: Path | None,
     data_dir: Path | None,
-    weights: Path | None,
-    weights_sha256: str | None,
-    config: str | None,
-    selection: str | None,
-    mode: str | None,
-    combine: str | None,
-    device: str | None,
+    **method_values: Any,  # the options of method_options (METHOD_OPTIONS)
 ) -> None:
     """Run method NAME on every set of a split and write a predictions CSV.
 
@@ -109,16 +104,7 @@ def baseline(
     if misplaced:
         raise UsageError("refusing to write the predictions", misplaced)
     method = methods.load(name)
-    options = given_options(
-        method,
-        weights=weights,
-        weights_sha256=weights_sha256,
-        config=config,
-        selection=selection,
-        mode=mode,
-        combine=combine,
-        device=device,
-    )
+    options = given_options(method, **method_values)
 
     from odmd_bench.predict.checks import method_warnings, scale_warnings
 

@@ -89,13 +89,7 @@ def predict(
     intrinsics: tuple[float, float, float, float] | None,
     normalized_boxes: bool,
     output: str | None,
-    weights: Path | None,
-    weights_sha256: str | None,
-    config: str | None,
-    selection: str | None,
-    mode: str | None,
-    combine: str | None,
-    device: str | None,
+    **method_values: Any,  # the options of method_options (METHOD_OPTIONS)
 ) -> None:
     """Estimate the depth at the last observation of every sequence in SEQUENCES.csv.
 
@@ -125,16 +119,7 @@ def predict(
     if target is not None and str(sequences) != "-" and same_file(target, Path(sequences)):
         raise UsageError(f"-o {target} is the sequences file being read; write the estimates elsewhere")
     method = methods.load(method_name)
-    options = given_options(
-        method,
-        weights=weights,
-        weights_sha256=weights_sha256,
-        config=config,
-        selection=selection,
-        mode=mode,
-        combine=combine,
-        device=device,
-    )
+    options = given_options(method, **method_values)
 
     seqs = read_sequences(sequences, image_size, intrinsics, normalized_boxes=normalized_boxes)
     result = predict_sequences(seqs, method, **options)
