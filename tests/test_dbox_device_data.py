@@ -174,7 +174,8 @@ def test_dbox_predicts_on_cuda_as_on_the_cpu() -> None:
 
 def _steps_eager(
     model: torch.nn.Module, batches: list[tuple[torch.Tensor, torch.Tensor]], rates: list[float]
-) -> None:
+) -> torch.optim.Optimizer:
+    """Plain training steps (the loop without a graph) with a fresh optimizer, returned."""
     from odmd_bench_baselines.dbox.train import make_optimizer
 
     opt = make_optimizer(model)
@@ -185,6 +186,7 @@ def _steps_eager(
         opt.zero_grad(set_to_none=True)
         loss.backward()
         opt.step()
+    return opt
 
 
 def test_the_graphed_steps_warm_up_is_undone() -> None:
@@ -248,7 +250,6 @@ def test_a_graphed_step_continues_a_run_that_has_adams_state() -> None:
     """Captured mid-run (a resumed run): the warm-up's undoing restores Adam's moments and step count."""
     from odmd_bench_baselines.dbox.graphs import GraphedStep
     from odmd_bench_baselines.dbox.model import DBox
-    from odmd_bench_baselines.dbox.train import make_optimizer
 
     source = device_data.DeviceBatches("odmd", "both", "rel", 1, torch.device("cpu"))
     batches = [source.batch(t, 32) for t in range(6)]
@@ -256,13 +257,7 @@ def test_a_graphed_step_continues_a_run_that_has_adams_state() -> None:
     plain = DBox(generator=torch.Generator().manual_seed(2))
     _steps_eager(plain, batches, rates)
     resumed = DBox(generator=torch.Generator().manual_seed(2))
-    opt = make_optimizer(resumed)
-    for (x, y), rate in zip(batches[:3], rates[:3], strict=True):  # the run before its interruption
-        for group in opt.param_groups:
-            group["lr"] = rate
-        opt.zero_grad(set_to_none=True)
-        (resumed(x) - y).abs().mean().backward()
-        opt.step()
+    opt = _steps_eager(resumed, batches[:3], rates[:3])  # the run before its interruption
     step = GraphedStep(resumed, opt, *batches[3], capture=False)
     for (x, y), rate in zip(batches[3:], rates[3:], strict=True):
         step.step(x, y, rate)
