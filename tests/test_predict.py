@@ -146,8 +146,8 @@ def test_the_careful_reader_gives_the_same_numbers_as_the_fast_one() -> None:
 
 @pytest.mark.parametrize("quoted", [False, True])
 def test_lines_of_separators_only_are_skipped_by_both_readers(quoted: bool) -> None:
-    # The fast reader's pandas would read ",,,,,,,," as a row of empty cells; the careful
-    # reader skips it like a blank line (as evaluate does). The same file must read the same.
+    # The fast reader would read ",,,,,,,," as a row of empty cells; the careful reader
+    # skips it like a blank line (as evaluate does). The same file must read the same.
     text = sequences.format_sequences(_examples(4), names=[f"s{i}" for i in range(4)])
     header, *rows = text.splitlines()
     rows[0] = f'"{rows[0].split(",", 1)[0]}",{rows[0].split(",", 1)[1]}' if quoted else rows[0]
@@ -498,14 +498,6 @@ def test_boxes_wholly_outside_the_image_are_warned_of(tmp_path: Path) -> None:
     assert r.exit_code == 0
     assert "warning: 2 of 2 boxes lie wholly outside the 64 x 48 image (lines 2, 4)" in r.stderr
     assert "warning" not in r.stdout
-
-
-def test_the_fast_reader_asks_older_pandas_for_exact_decimals() -> None:
-    """Before 3.1, pandas can miss 17-digit decimals by one unit in the last place without it."""
-    from odmd_bench.predict import sequence_rows
-
-    assert dict(sequence_rows._round_trip("2.0.3")) == {"float_precision": "round_trip"}
-    assert dict(sequence_rows._round_trip("3.1.0rc1")) == {}
 
 
 def test_the_error_summary_keeps_its_columns_apart_for_large_errors() -> None:

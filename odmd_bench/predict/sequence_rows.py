@@ -1,8 +1,8 @@
 """The rows of a sequences CSV (:mod:`odmd_bench.predict.sequences`): parsed, checked, grouped.
 
-Two readers give the same :class:`Rows`: the pandas C parser (vectorised) for a
-well-formed file, after byte-level checks, and a row-by-row reader with :mod:`csv` that
-locates each problem, for anything else. Then every rule on cell values is checked
+Two readers give the same :class:`Rows`: whole-array reading of a clean file
+(:mod:`odmd_bench.inputs.table`), and a row-by-row reader with :mod:`csv` that locates
+each problem, for anything else. Then every rule on cell values is checked
 vectorised, and the rows are grouped into sequences ordered by observation. Every
 problem goes to one :class:`~odmd_bench.inputs.problems.Problems`, located by line.
 """
@@ -10,11 +10,8 @@ problem goes to one :class:`~odmd_bench.inputs.problems.Problems`, located by li
 from __future__ import annotations
 
 import csv
-import functools
-import io
 import re
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
@@ -24,22 +21,10 @@ from odmd_bench.inputs.formats import ORIENTATION_COLUMNS
 from odmd_bench.inputs.formats import SEQUENCE_COLUMNS as REQUIRED_COLUMNS
 from odmd_bench.inputs.problems import SHOWN, Problems, show
 from odmd_bench.inputs.records import CsvSyntaxError, csv_records
+from odmd_bench.inputs.table import clean_columns, factorize
 
 _BOX = ("x1", "y1", "x2", "y2")
 _CAM = ("cam_x", "cam_y", "cam_z")
-
-
-@functools.cache
-def _round_trip(pandas_version: str) -> tuple[tuple[str, str], ...]:
-    """``read_csv`` options that parse every decimal to the nearest float64.
-
-    pandas before 3.1 reads with a faster parser that can miss by one unit in the last
-    place (17-digit decimals), unless asked for ``float_precision="round_trip"``; pandas
-    3.1 always rounds right and deprecates the option. Without it, ``predict`` would give
-    depths differing in the last digits from one pandas to another.
-    """
-    major, minor = (int(x) for x in re.findall(r"\d+", pandas_version)[:2])
-    return (("float_precision", "round_trip"),) if (major, minor) < (3, 1) else ()
 
 
 _NUMERIC = ("observation", *_BOX, *_CAM)
@@ -56,6 +41,8 @@ class Rows:
     numbers: np.ndarray  # (M, 8) observation, x1, y1, x2, y2, cam_x, cam_y, cam_z; NaN: empty
     depth: np.ndarray | None  # (M,) NaN: empty
     orientation: np.ndarray | None = None  # (M, 4) cam_qx, cam_qy, cam_qz, cam_qw; NaN: empty
+    #: ``sequence`` factorized, where the reader did it already: (codes (M,), names).
+    factorized: tuple[np.ndarray, np.ndarray] | None = None
 
 
 #: A quaternion is refused when its length differs from 1 by more than this.
@@ -109,59 +96,24 @@ def header_columns(data: bytes, problems: Problems) -> tuple[list[str], dict[str
 
 
 def fast_rows(data: bytes, header: list[str], cols: dict[str, int]) -> Rows | None:
-    """The rows by the pandas C parser, or None when the file needs the careful reader.
+    """The rows of a clean file (:func:`~odmd_bench.inputs.table.clean_columns`), or None.
 
-    Taken only when the file has no quote and no line end but LF or CRLF, holds exactly
-    the header's number of commas on every line, and pandas reads every cell of the
-    columns used as a number or an empty cell. Every line has the header's number of
-    fields: pandas refuses a line with more, and with the total of commas right no line
-    can then have fewer (a blank line has none). So a row's line is its index + 2.
+    None sends the file to the careful reader: a quote, a blank line, a line with another
+    number of fields, an empty sequence name, a cell of a number column that is neither
+    empty nor a number in the reader's pattern. Every line has the header's number of
+    fields, so a row's line is its index + 2.
     """
-    returns = data.count(b"\r")
-    if b'"' in data or (returns and returns != data.count(b"\r\n")):
+    used = [*_NUMERIC] + (["depth"] if "depth" in cols else []) + _orientation(cols)
+    found = clean_columns(data, len(header), [cols[c] for c in used], cols["sequence"])
+    if found is None:
         return None
-    n_lines = data.count(b"\n") + (not data.endswith(b"\n"))
-    if n_lines < 2 or data.count(b",") != (len(header) - 1) * n_lines:
-        return None
-    import pandas as pd
-
-    used = ["sequence", *_NUMERIC] + (["depth"] if "depth" in cols else []) + _orientation(cols)
-    dtypes: dict[int, Any] = {i: object for i in range(len(header))}  # ignored columns: any text
-    dtypes.update({cols[c]: np.float64 for c in used if c != "sequence"})
-    try:
-        df = pd.read_csv(
-            io.BytesIO(data),
-            header=None,
-            skiprows=1,
-            names=list(range(len(header))),
-            dtype=dtypes,
-            keep_default_na=False,
-            na_values=[""],
-            index_col=False,
-            encoding="utf-8",
-            engine="c",
-            low_memory=False,
-            **dict(_round_trip(pd.__version__)),
-        )
-    except (ValueError, pd.errors.ParserError):  # a cell that is no number, a long line
-        return None
-    m = len(df)
-    if m != n_lines - 1:
-        return None
-    seq = df[cols["sequence"]].to_numpy(dtype=object)
-    codes, uniques = pd.factorize(seq, sort=False, use_na_sentinel=False)
-    stripped = np.array(["" if u is None or u != u else str(u).strip() for u in uniques], dtype=object)
-    if (stripped == "").any():
-        # A row without a sequence name: a line of separators only, which the careful
-        # reader skips like a blank line (pandas reads it as empty cells), or a problem
-        # that reader locates.
-        return None
-    numbers = np.empty((m, len(_NUMERIC)))
-    for j, c in enumerate(_NUMERIC):
-        numbers[:, j] = df[cols[c]].to_numpy(dtype=np.float64)
-    depth = df[cols["depth"]].to_numpy(dtype=np.float64) if "depth" in cols else None
-    quat = [df[cols[c]].to_numpy(dtype=np.float64) for c in _orientation(cols)]
-    return Rows(np.arange(m) + 2, stripped[codes], numbers, depth, np.stack(quat, axis=1) if quat else None)
+    num = found.numbers
+    k = len(_NUMERIC)
+    depth = num[:, k] if "depth" in cols else None
+    quat = num[:, -4:] if _orientation(cols) else None
+    names = np.empty(len(found.values), dtype=object)
+    names[:] = found.values
+    return Rows(np.arange(found.n) + 2, names[found.codes], num[:, :k], depth, quat, (found.codes, names))
 
 
 def _orientation(cols: dict[str, int]) -> list[str]:
@@ -306,10 +258,7 @@ def group(rows: Rows, problems: Problems) -> tuple[np.ndarray, np.ndarray, np.nd
         ``(names, order, starts, counts)``: the sequences in order of first appearance
         and the rows sorted by sequence then observation.
     """
-    import pandas as pd
-
-    codes, uniques = pd.factorize(rows.sequence, sort=False)
-    names = np.asarray(uniques, dtype=object)
+    codes, names = rows.factorized or factorize(rows.sequence)
     obs = rows.numbers[:, 0]
     order = np.lexsort((obs, codes))
     counts = np.bincount(codes, minlength=len(names))

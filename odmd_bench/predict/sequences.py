@@ -24,11 +24,12 @@ empty) becomes ``detected = False``.
 
 Reading is strict in the way the predictions reader is: a file with a problem is refused
 as a whole (:class:`~odmd_bench.errors.ValidationError`) naming every kind of problem
-with its count and first lines. A well-formed file is parsed by the pandas C parser
-(vectorised) after byte-level checks (no quote, the header's number of commas on every
-line); anything else (quoted cells, blank lines, a problem) goes to a row-by-row reader
-that locates each problem, with Python's ``float``. The two gave the same float for each
-of 4.4 million decimal strings of 1 to 20 digits tried, and ``repr``-written numbers come
+with its count and first lines. A clean file (no quote, no blank line, the header's
+number of fields on every line, numbers as most tools write them) is read with
+whole-array operations (:mod:`odmd_bench.inputs.table`), its numbers converted
+correctly rounded without a call per cell (:mod:`odmd_bench.inputs.decimals`); anything
+else goes to a row-by-row reader that locates each problem, with Python's ``float``. Both
+give each number cell the float ``float`` gives it, so ``repr``-written numbers come
 back exactly. A UTF-8 byte-order mark, CRLF line ends, UTF-16 with a byte-order mark and
 gzip-compressed files are accepted (:mod:`odmd_bench.predict.sequence_rows` reads the rows).
 """
@@ -266,10 +267,12 @@ def read_sequences(
         raise ValidationError(
             title, [f"the file is empty; expected a header {','.join(REQUIRED_COLUMNS)}[,depth]"]
         )
-    text, problem = decode(data)
-    if text is None:
-        raise ValidationError(title, [problem or "the file is not text"])
-    data = text.encode("utf-8")  # without a byte-order mark, UTF-16 made UTF-8
+    text: str | None = None
+    if not data.isascii() or b"\x00" in data:  # plain ASCII is UTF-8 already (no byte-order mark)
+        text, problem = decode(data)
+        if text is None:
+            raise ValidationError(title, [problem or "the file is not text"])
+        data = text.encode("utf-8")  # without a byte-order mark, UTF-16 made UTF-8
     problems = Problems()
     parsed = header_columns(data, problems)
     if parsed is None:
@@ -277,7 +280,7 @@ def read_sequences(
     header, cols = parsed
     rows = fast_rows(data, header, cols)
     if rows is None:
-        rows = careful_rows(text, header, cols, problems)
+        rows = careful_rows(data.decode("utf-8") if text is None else text, header, cols, problems)
     if not len(rows.lines) and not problems:
         raise ValidationError(title, ["the file has a header but no rows; expected one row per observation"])
     check_rows(rows, problems)
