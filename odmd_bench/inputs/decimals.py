@@ -42,8 +42,7 @@ FRACTION_DIGITS = 24
 
 _U = np.uint64
 _ZERO = _U(0x3030303030303030)  # "00000000"
-_LOW7 = _U(0x7F7F7F7F7F7F7F7F)
-_NINE_UP = _U(0x7676767676767676)  # a lane of 0..0x7f plus this reaches 0x80 from 10 up
+_NINE_UP = _U(0x7676767676767676)  # a lane plus this reaches 0x80 from 10 up
 _HIGH = _U(0x8080808080808080)
 # _KEEP[k]: the last k bytes of a little-endian word (its k highest lanes), for k = 0..8;
 # _KEEP3[k]: the last k bytes of three words, k = 0..24.
@@ -83,12 +82,13 @@ def _digits(words: np.ndarray, keep: np.ndarray) -> tuple[np.ndarray, np.ndarray
     x = words
     x ^= _ZERO
     x &= keep
-    t = x & _LOW7
-    t += _NINE_UP
+    # A lane of 10 or more gets its high bit set (a lane of 0x8a or more carries into the
+    # next lane, of the same word and so of the same cell: the cell is refused anyway).
+    t = x + _NINE_UP
     t |= x
-    t &= _HIGH
     bad = None
-    if np.bitwise_or.reduce(t, axis=None):
+    if np.bitwise_or.reduce(t, axis=None) & _HIGH:
+        t &= _HIGH
         if t.ndim == 2:  # OR of the columns (faster than a reduction along a short axis)
             t = functools.reduce(np.bitwise_or, (t[:, j] for j in range(t.shape[1])))
         bad = t != 0
@@ -102,7 +102,7 @@ def _digits(words: np.ndarray, keep: np.ndarray) -> tuple[np.ndarray, np.ndarray
 
 def _words(buf: np.ndarray) -> np.ndarray:
     """(B - 7,) uint64: the 8 bytes from each position of ``buf`` as one word (a view)."""
-    base = buf[: buf.size - buf.size % 8].view(_U) if buf.size % 8 == 0 or True else None
+    base = buf[: buf.size - buf.size % 8].view(_U)
     return as_strided(base, shape=(buf.size - 7,), strides=(1,), writeable=False)
 
 
@@ -129,11 +129,15 @@ def parse_decimals(
     n_frac = end - dot
     n_frac -= 1
     np.maximum(n_frac, 0, out=n_frac)
-    ok = n_int >= 0
+    n_digits = n_int + n_frac
+    ok = n_digits > 0
     ok &= n_frac <= FRACTION_DIGITS
-    ok &= (n_int + n_frac) > 0
-    ok &= dot >= 8
-    ok &= end >= FRACTION_DIGITS  # the words lie in the buffer
+    if (
+        n_int.min(initial=0) < 0
+        or dot.min(initial=8) < 8
+        or end.min(initial=FRACTION_DIGITS) < FRACTION_DIGITS
+    ):
+        ok &= (n_int >= 0) & (dot >= 8) & (end >= FRACTION_DIGITS)  # the words lie in the buffer
     wide = n_int > 8
     rest = None
     if wide.any():
@@ -145,7 +149,7 @@ def parse_decimals(
     words = _words(buf)
     iw = words[np.maximum(dot - 8, 0)]
     whole, ibad = _digits(iw, _KEEP[np.maximum(n_int, 0)])
-    values, done = _finish(buf, whole, n_frac, end, neg, ok, ibad)
+    values, done = _finish(buf, whole, n_digits, n_frac, end, neg, ok, ibad)
     if rest is not None and rest.size:
         # Up to 16 digits before the point: two words.
         d = dot[rest]
@@ -154,7 +158,14 @@ def parse_decimals(
         i2, ibad = _digits(iw, np.stack((_KEEP[np.clip(k - 8, 0, 8)], _KEEP[np.minimum(k, 8)]), axis=1))
         whole = i2[:, 0] * _U(100_000_000) + i2[:, 1]
         values[rest], done[rest] = _finish(
-            buf, whole, n_frac[rest], end[rest], neg[rest], np.ones(rest.size, dtype=bool), ibad
+            buf,
+            whole,
+            n_digits[rest],
+            n_frac[rest],
+            end[rest],
+            neg[rest],
+            np.ones(rest.size, dtype=bool),
+            ibad,
         )
     return values, done
 
@@ -162,6 +173,7 @@ def parse_decimals(
 def _finish(
     buf: np.ndarray,
     whole: np.ndarray,
+    n_digits: np.ndarray,
     n_frac: np.ndarray,
     end: np.ndarray,
     neg: np.ndarray,
@@ -170,18 +182,20 @@ def _finish(
 ) -> tuple[np.ndarray, np.ndarray]:
     """The numbers of cells whose integer part is ``whole``, with their fractions read here."""
     # The fraction digits, right-aligned in three words ending at the cell's end.
-    e = np.maximum(end - FRACTION_DIGITS, 0)
     words = _words(buf)
-    fw = np.stack((words[e], words[e + 8], words[e + 16]), axis=1)
+    triples = as_strided(words, shape=(words.size - 16, 3), strides=(1, 8), writeable=False)
+    fw = triples[np.maximum(end - FRACTION_DIGITS, 0)]
     frac, fbad = _digits(fw, np.take(_KEEP3, n_frac, axis=0))
     if ibad is not None:
         ok &= ~ibad
     if fbad is not None:
         ok &= ~fbad
-    # The digits as one integer w below 2**64 (with room for the estimate's error), or marked.
-    estimate = whole * _POW10_F[n_frac]
-    estimate += frac[:, 0] * 1e16
-    ok &= estimate < 1.8e19
+    # The digits as one integer w below 2**64, or marked: up to 19 digits are; with more
+    # (leading zeros, say), an estimate decides (with room for its error).
+    long = np.flatnonzero(n_digits > 19)
+    if long.size:
+        estimate = whole[long] * _POW10_F[n_frac[long]] + frac[long, 0] * 1e16
+        ok[long] &= estimate < 1.8e19
     w = whole * _POW10_U[n_frac]
     w += frac[:, 0] * _U(10**16)
     w += frac[:, 1] * _U(100_000_000)

@@ -13,11 +13,12 @@ alone says what a problem is. What the two give a clean file is the same.
 
 from __future__ import annotations
 
+import itertools
 import re
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.lib.stride_tricks import sliding_window_view
+from numpy.lib.stride_tricks import as_strided
 
 from odmd_bench.inputs.decimals import FRACTION_DIGITS, parse_decimals
 
@@ -83,7 +84,7 @@ def clean_columns(data: bytes, width: int, numbers: list[int], text: int) -> Col
         return None
     buf = np.frombuffer(data, dtype=np.uint8)
     cols = np.asarray(numbers, dtype=np.int64)
-    found: list[np.ndarray] = []
+    found: list[np.ndarray] = []  # (k, lines) per block
     codes: list[np.ndarray] = []
     names: dict[str, int] = {}
     at = header_end
@@ -95,8 +96,13 @@ def clean_columns(data: bytes, width: int, numbers: list[int], text: int) -> Col
         found.append(block[0])
         codes.append(block[1])
         at = stop
-    values = np.concatenate(found, axis=1)
-    return Columns(values.shape[1], values.T, np.concatenate(codes), tuple(names))
+    code = np.concatenate(codes)
+    values = np.empty((cols.size, code.size))
+    done = 0
+    for block_values in found:
+        values[:, done : done + block_values.shape[1]] = block_values
+        done += block_values.shape[1]
+    return Columns(code.size, values.T, code, tuple(names))
 
 
 def _block(
@@ -119,17 +125,13 @@ def _block(
     kind = buf[where]
     is_dot = kind == _DOT
     at_dot = np.flatnonzero(is_dot)
-    if at_dot.size:
-        is_sep = ~is_dot
-        seps, kind = where[is_sep], kind[is_sep]
-    else:
-        seps = where
+    seps = where[~is_dot] if at_dot.size else where
     if seps.size % width:
         return None
     n = seps.size // width
     grid = seps.reshape(n, width)
     # Every line has ``width`` fields: its last separator is its only line end.
-    if np.count_nonzero(kind == _NEWLINE) != n or not (kind[width - 1 :: width] == _NEWLINE).all():
+    if np.count_nonzero(kind == _NEWLINE) != n or not (buf[grid[:, -1]] == _NEWLINE).all():
         return None
     # Each cell's decimal point (the last one where it has several: the others are then
     # bytes that are no digit), its end where it has none.
@@ -138,16 +140,15 @@ def _block(
     # Column-major: each number column's cells together.
     end, dot = grid.T[cols].ravel(), dots.T[cols].ravel()
     start = _starts(grid, cols, at).ravel()
-    values = np.full(start.size, np.nan)
-    full = np.flatnonzero(end > start)
-    if full.size:
-        v, done = parse_decimals(buf, start[full], end[full], dot[full])
-        values[full] = v
-        for i in full[~done].tolist():
-            cell = data[start[i] : end[i]]
-            if NUMBER.fullmatch(cell) is None:
-                return None
-            values[i] = float(cell)
+    values, done = parse_decimals(buf, start, end, dot)  # an empty cell is not done
+    empty = end == start
+    values[empty] = np.nan
+    done |= empty
+    for i in np.flatnonzero(~done).tolist():
+        cell = data[start[i] : end[i]]
+        if NUMBER.fullmatch(cell) is None:
+            return None
+        values[i] = float(cell)
     code = _factorize(data, buf, _starts(grid, np.array([text]), at)[0], grid[:, text], names)
     if code is None:
         return None
@@ -181,7 +182,8 @@ def _factorize(
     n = start.size
     length = end - start
     if length.max() <= _SHORT_TEXT and start.max() + _SHORT_TEXT <= buf.size:
-        words = sliding_window_view(buf, _SHORT_TEXT)[start].view(np.uint64)
+        base = buf[: buf.size - buf.size % 8].view(np.uint64)
+        words = as_strided(base, shape=(buf.size - 15, 2), strides=(1, 8), writeable=False)[start]
         words &= np.stack(
             (_KEEP_FIRST[np.minimum(length, 8)], _KEEP_FIRST[np.clip(length - 8, 0, 8)]), axis=1
         )
@@ -208,7 +210,7 @@ def _factorize(
         texts = [t.strip() for t in texts]
         if not all(texts):
             return None
-    fresh = [t for t in dict.fromkeys(texts) if t not in names]
+    fresh = list(itertools.filterfalse(names.__contains__, dict.fromkeys(texts)))
     names.update(zip(fresh, range(len(names), len(names) + len(fresh)), strict=True))
     run_codes = np.fromiter(map(names.__getitem__, texts), dtype=np.int64, count=len(texts))
     return np.repeat(run_codes, np.diff(runs, append=n))
