@@ -12,6 +12,11 @@ Rates are sequences per second = 100,000 / best time:
 
 * ``test_parse``: :func:`read_sequences` on the file's bytes, strict checks and
   conversion to examples included (the vectorised path of a well-formed file);
+* ``test_rows``: the reading alone (:func:`~odmd_bench.predict.sequence_rows.fast_rows`:
+  the clean file's cells to arrays, numbers correctly rounded, names factorized), and
+  ``test_rows_pandas_reference``, the same work as the reader before it did it (its byte
+  checks, pandas' C parser with its options, ``factorize``): the reference of the same
+  run, its ratio printed;
 * ``test_parse_careful``: the same file with one blank line, which sends it through the
   row-by-row reader that locates problems (what a file with a problem costs);
 * ``test_solve``: Box_LS (``predict_report``, fills and fallbacks included) on the
@@ -61,6 +66,78 @@ def test_parse(benchmark, data: bytes) -> None:
     seqs = benchmark.pedantic(read_sequences, args=(data, SIZE), rounds=3, iterations=1)
     assert len(seqs) == N and seqs.examples().n_obs == 10
     benchmark.extra_info["megabytes"] = len(data) / 1e6
+    _rate(benchmark)
+
+
+def _header(data: bytes) -> tuple[list[str], dict[str, int]]:
+    from odmd_bench.inputs.problems import Problems
+    from odmd_bench.predict.sequence_rows import header_columns
+
+    parsed = header_columns(data, Problems())
+    assert parsed is not None
+    return parsed
+
+
+_ROWS: dict[str, float] = {}
+
+
+def test_rows(benchmark, data: bytes) -> None:
+    from odmd_bench.predict.sequence_rows import fast_rows
+
+    header, cols = _header(data)
+    rows = benchmark.pedantic(fast_rows, args=(data, header, cols), rounds=5, iterations=1)
+    assert rows is not None and len(rows.lines) == 10 * N
+    _ROWS["ours"] = benchmark.stats.stats.min
+    _rate(benchmark)
+
+
+def test_rows_pandas_reference(benchmark, data: bytes) -> None:
+    """The reading ``fast_rows`` does, as the reader before it did it: pandas' C parser.
+
+    Its byte-level checks (no quote, every line's commas), ``read_csv`` with the options
+    it used, the names factorized and stripped, the number columns gathered.
+    """
+    pd = pytest.importorskip("pandas")
+    import io
+
+    header, cols = _header(data)
+    numeric = [c for c in header if c != "sequence"]
+
+    def read() -> tuple[np.ndarray, np.ndarray]:
+        returns = data.count(b"\r")
+        assert b'"' not in data and not returns
+        n_lines = data.count(b"\n") + (not data.endswith(b"\n"))
+        assert data.count(b",") == (len(header) - 1) * n_lines
+        dtypes = {i: (object if name == "sequence" else np.float64) for i, name in enumerate(header)}
+        df = pd.read_csv(
+            io.BytesIO(data),
+            header=None,
+            skiprows=1,
+            names=list(range(len(header))),
+            dtype=dtypes,
+            keep_default_na=False,
+            na_values=[""],
+            index_col=False,
+            encoding="utf-8",
+            engine="c",
+            low_memory=False,
+        )
+        codes, uniques = pd.factorize(df[cols["sequence"]].to_numpy(dtype=object), sort=False)
+        stripped = np.array([str(u).strip() for u in uniques], dtype=object)
+        numbers = np.empty((len(df), len(numeric)))
+        for j, c in enumerate(numeric):
+            numbers[:, j] = df[cols[c]].to_numpy(dtype=np.float64)
+        return stripped[codes], numbers
+
+    names, numbers = benchmark.pedantic(read, rounds=5, iterations=1)
+    assert numbers.shape == (10 * N, len(numeric))
+    ref = benchmark.stats.stats.min
+    benchmark.extra_info["reference"] = (
+        "the pandas reader before: byte checks, read_csv (C engine), factorize"
+    )
+    if "ours" in _ROWS:
+        benchmark.extra_info["ours_over_pandas"] = _ROWS["ours"] / ref
+        print(f"\nthe strict reader's fast path takes {_ROWS['ours'] / ref:.2f} times pandas' time")
     _rate(benchmark)
 
 
