@@ -187,3 +187,18 @@ def test_predict_reads_and_solves_without_pandas(tmp_path) -> None:  # noqa: ANN
     )
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path)
     assert r.returncode == 0, r.stderr
+
+
+def test_a_big_endian_machine_reads_the_same_by_float(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The words are little-endian: elsewhere every cell goes to ``float`` and names row by row."""
+    text = sequences.format_sequences(
+        __import__("odmd_bench").generate(30, rng=5), names=[f"s{i}" for i in range(30)]
+    )
+    want = _both(text)[1]
+    monkeypatch.setattr(decimals, "LITTLE_ENDIAN", False)
+    monkeypatch.setattr(table, "LITTLE_ENDIAN", False)
+    _, done = _parse(["1.5"])
+    assert not done.any()
+    got = _both(text)[1]
+    assert want is not None and got is not None
+    _assert_same(want, got)

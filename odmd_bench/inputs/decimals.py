@@ -30,6 +30,7 @@ what ``float`` gives the cell; the tests compare the two on millions of cells.
 from __future__ import annotations
 
 import functools
+import sys
 
 import numpy as np
 from numpy.lib.stride_tricks import as_strided, sliding_window_view
@@ -59,6 +60,9 @@ _SWAR = (
 )
 _POW10_U = np.array([10**k if 10**k < 2**64 else 0 for k in range(FRACTION_DIGITS + 1)], dtype=_U)
 _POW10_F = np.array([10.0**k for k in range(FRACTION_DIGITS + 1)])
+#: The words are read little-endian (a byte's lane is its place in memory): elsewhere no
+#: cell is converted here, and every one goes to ``float``.
+LITTLE_ENDIAN = sys.byteorder == "little"
 _EXTENDED = np.finfo(np.longdouble).nmant == 63 and np.dtype(np.longdouble).itemsize == 16
 #: Whether the extended-precision path is used (module state so that tests can turn it off).
 use_extended = bool(_EXTENDED)
@@ -123,6 +127,8 @@ def parse_decimals(
         ``(values, done)``: (n,) float64 and (n,) bool; where ``done`` is False the cell
         is not in the form converted here (it may still be a number) and its value is 0.
     """
+    if not LITTLE_ENDIAN:
+        return np.zeros(start.size), np.zeros(start.size, dtype=bool)
     neg = buf[start] == 45  # "-"
     n_int = dot - start
     n_int -= neg

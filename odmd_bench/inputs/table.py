@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.lib.stride_tricks import as_strided
 
-from odmd_bench.inputs.decimals import FRACTION_DIGITS, parse_decimals
+from odmd_bench.inputs.decimals import FRACTION_DIGITS, LITTLE_ENDIAN, parse_decimals
 
 #: Bytes of a file read at once (cut at a line end): the work arrays of a block stay in
 #: the processor's cache, where whole-array operations are several times faster than on
@@ -181,7 +181,7 @@ def _factorize(
     """
     n = start.size
     length = end - start
-    if length.max() <= _SHORT_TEXT and start.max() + _SHORT_TEXT <= buf.size:
+    if LITTLE_ENDIAN and length.max() <= _SHORT_TEXT and start.max() + _SHORT_TEXT <= buf.size:
         base = buf[: buf.size - buf.size % 8].view(np.uint64)
         words = as_strided(base, shape=(buf.size - 15, 2), strides=(1, 8), writeable=False)[start]
         words &= np.stack(
