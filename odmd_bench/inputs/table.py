@@ -42,27 +42,28 @@ class Columns:
 
     Attributes:
         n: rows (the lines after the header).
-        numbers: (n, k) float64, the number columns asked for in order; NaN: an empty cell.
-            Column-major (each column contiguous).
+        numbers: one (n, k) float64 array (C-contiguous) per group of number columns asked
+            for, its columns in the order asked; NaN: an empty cell.
         codes: (n,) int64, the text column's value of each row, as an index into ``values``.
         values: the text column's distinct values (stripped of surrounding spaces), in
             order of first appearance.
     """
 
     n: int
-    numbers: np.ndarray
+    numbers: tuple[np.ndarray, ...]
     codes: np.ndarray
     values: tuple[str, ...]
 
 
-def clean_columns(data: bytes, width: int, numbers: list[int], text: int) -> Columns | None:
+def clean_columns(data: bytes, width: int, numbers: list[list[int]], text: int) -> Columns | None:
     r"""The columns of a clean file (module docstring), or None where it is not clean.
 
     Args:
         data: the file's bytes; its first line is the header (at least
             :data:`~odmd_bench.inputs.decimals.FRACTION_DIGITS` bytes long).
         width: the header's number of fields.
-        numbers: the positions of the number columns.
+        numbers: the positions of the number columns, in groups: each group's columns
+            come back as one array.
         text: the position of the text column whose values are factorized.
 
     Returns:
@@ -83,7 +84,7 @@ def clean_columns(data: bytes, width: int, numbers: list[int], text: int) -> Col
     if header_end >= len(data):
         return None
     buf = np.frombuffer(data, dtype=np.uint8)
-    cols = np.asarray(numbers, dtype=np.int64)
+    cols = np.asarray([c for group in numbers for c in group], dtype=np.int64)
     found: list[np.ndarray] = []  # (k, lines) per block
     codes: list[np.ndarray] = []
     names: dict[str, int] = {}
@@ -97,12 +98,16 @@ def clean_columns(data: bytes, width: int, numbers: list[int], text: int) -> Col
         codes.append(block[1])
         at = stop
     code = np.concatenate(codes)
-    values = np.empty((cols.size, code.size))
+    # Each group row-major, filled a block at a time (a block's transpose stays in cache).
+    out = [np.empty((code.size, len(group))) for group in numbers]
     done = 0
     for block_values in found:
-        values[:, done : done + block_values.shape[1]] = block_values
-        done += block_values.shape[1]
-    return Columns(code.size, values.T, code, tuple(names))
+        n, first = block_values.shape[1], 0
+        for group in out:
+            group[done : done + n] = block_values[first : first + group.shape[1]].T
+            first += group.shape[1]
+        done += n
+    return Columns(code.size, tuple(out), code, tuple(names))
 
 
 def _block(

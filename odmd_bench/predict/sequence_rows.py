@@ -103,17 +103,20 @@ def fast_rows(data: bytes, header: list[str], cols: dict[str, int]) -> Rows | No
     empty nor a number in the reader's pattern. Every line has the header's number of
     fields, so a row's line is its index + 2.
     """
-    used = [*_NUMERIC] + (["depth"] if "depth" in cols else []) + _orientation(cols)
-    found = clean_columns(data, len(header), [cols[c] for c in used], cols["sequence"])
+    groups = [[cols[c] for c in _NUMERIC]]
+    if "depth" in cols:
+        groups.append([cols["depth"]])
+    if _orientation(cols):
+        groups.append([cols[c] for c in _orientation(cols)])
+    found = clean_columns(data, len(header), groups, cols["sequence"])
     if found is None:
         return None
-    num = found.numbers
-    k = len(_NUMERIC)
-    depth = num[:, k] if "depth" in cols else None
-    quat = num[:, -4:] if _orientation(cols) else None
+    numbers, *rest = found.numbers
+    depth = rest.pop(0)[:, 0] if "depth" in cols else None
+    quat = rest.pop(0) if _orientation(cols) else None
     names = np.empty(len(found.values), dtype=object)
     names[:] = found.values
-    return Rows(np.arange(found.n) + 2, names[found.codes], num[:, :k], depth, quat, (found.codes, names))
+    return Rows(np.arange(found.n) + 2, names[found.codes], numbers, depth, quat, (found.codes, names))
 
 
 def _orientation(cols: dict[str, int]) -> list[str]:
