@@ -6,10 +6,12 @@ import decimal
 import random
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 
+import odmd_bench
 from odmd_bench.inputs import decimals, table
 from odmd_bench.inputs.problems import Problems
 from odmd_bench.predict import sequence_rows, sequences
@@ -155,8 +157,6 @@ def test_a_file_that_is_not_clean_goes_row_by_row(change: tuple) -> None:
 
 
 def test_the_sequences_reader_is_the_same_on_the_fast_and_the_careful_path() -> None:
-    import odmd_bench
-
     ex = odmd_bench.generate(500, perturbation="both", rng=4)
     text = sequences.format_sequences(ex)
     fast = sequences.read_sequences(text.encode(), (640, 480))
@@ -173,9 +173,7 @@ def test_factorize_keeps_the_order_of_first_appearance() -> None:
     assert codes.size == 0 and uniques.size == 0
 
 
-def test_predict_reads_and_solves_without_pandas(tmp_path) -> None:  # noqa: ANN001
-    import odmd_bench
-
+def test_predict_reads_and_solves_without_pandas(tmp_path: Path) -> None:
     path = tmp_path / "s.csv"
     sequences.write_sequences(path, odmd_bench.generate(50, rng=0))
     code = (
@@ -191,9 +189,7 @@ def test_predict_reads_and_solves_without_pandas(tmp_path) -> None:  # noqa: ANN
 
 def test_a_big_endian_machine_reads_the_same_by_float(monkeypatch: pytest.MonkeyPatch) -> None:
     """The words are little-endian: elsewhere every cell goes to ``float`` and names row by row."""
-    text = sequences.format_sequences(
-        __import__("odmd_bench").generate(30, rng=5), names=[f"s{i}" for i in range(30)]
-    )
+    text = sequences.format_sequences(odmd_bench.generate(30, rng=5), names=[f"s{i}" for i in range(30)])
     want = _both(text)[1]
     monkeypatch.setattr(decimals, "LITTLE_ENDIAN", False)
     monkeypatch.setattr(table, "LITTLE_ENDIAN", False)
