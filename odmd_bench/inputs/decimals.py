@@ -21,7 +21,8 @@ after it, a value below 2**64 once the point is dropped) is converted here:
    few cells, and every cell in another form (an exponent, a ``+`` sign, more digits),
    are marked for Python's ``float``.
 
-Where ``longdouble`` is no wider than float64 (Windows, macOS on ARM) only the cells
+Where ``longdouble`` has no 64-bit significand (it is float64 on Windows and macOS on
+ARM, a 113-bit software type on Linux on ARM) only the cells
 that plain float64 division rounds right (``w < 2**53``, ``f <= 22``: both operands
 exact) are converted here, the rest marked. Either way a converted value is bit for bit
 what ``float`` gives the cell; the tests compare the two on millions of cells.
@@ -64,12 +65,16 @@ _POW10_F = np.array([10.0**k for k in range(FRACTION_DIGITS + 1)])
 #: cell is converted here, and every one goes to ``float``.
 LITTLE_ENDIAN = sys.byteorder == "little"
 _EXTENDED = np.finfo(np.longdouble).nmant == 63 and np.dtype(np.longdouble).itemsize == 16
+_POW10_L = np.array([10**k for k in range(FRACTION_DIGITS + 1)], dtype=np.longdouble)
+# Exact in 64 bits (10**k = 2**k * 5**k, 5**24 < 2**64) where numpy made them so, and
+# the processor divides to 64 bits (its x87 precision not set lower).
+_EXTENDED = (
+    _EXTENDED
+    and all(int(p) == 10**k for k, p in enumerate(_POW10_L))
+    and int(np.array([2**64 - 1], dtype=_U).astype(np.longdouble)[0] / _POW10_L[0]) == 2**64 - 1
+)
 #: Whether the extended-precision path is used (module state so that tests can turn it off).
 use_extended = bool(_EXTENDED)
-if _EXTENDED:
-    _POW10_L = np.array([10**k for k in range(FRACTION_DIGITS + 1)], dtype=np.longdouble)
-    for _k in range(FRACTION_DIGITS + 1):  # exact: 10**k = 2**k * 5**k, 5**24 < 2**64
-        assert int(_POW10_L[_k]) == 10**_k
 
 
 def _digits(words: np.ndarray, keep: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
