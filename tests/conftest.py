@@ -11,6 +11,7 @@ import json
 import os
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -108,3 +109,28 @@ def recorded_plot(root: Path) -> None:
         return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
 
     (root / lb.PLOT).write_bytes(b"\x89PNG\r\n\x1a\n" + chunk(b"tEXt", text) + chunk(b"IEND", b""))
+
+
+def add_entry(root: Path, data_dir: Path, preds: Path, method: str, **over: Any) -> Any:
+    """``leaderboard.add_entry`` of ``preds`` as an odmd-v1 test entry ``method`` with test metadata.
+
+    Any field (or option of ``add_entry``) may be given in ``over``.
+    """
+    from odmd_bench import leaderboard as lb
+
+    kwargs: dict[str, Any] = {
+        "method": method,
+        "name": method.upper(),
+        "description": "a test entry",
+        "paper": "none",
+        "code": "https://example.org/code",
+        "training_data": "none",
+        "command": f"odmd-bench baseline {method}",
+        "benchmark": "odmd-v1",
+        "split": "test",
+        "calibrated": False,
+        "date": "2026-01-02",
+        "data_dir": data_dir,
+    }
+    kwargs.update(over)
+    return lb.add_entry(root, preds, **kwargs)

@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 import yaml
 from click.testing import CliRunner
+from conftest import add_entry as _add
 from conftest import recorded_plot
 
 from odmd_bench import leaderboard as lb
@@ -41,25 +42,6 @@ def _predictions(data_dir: Path, tmp: Path, method: str) -> Path:
     path = tmp / f"{method}.csv"
     write_predictions(path, "test", {s: module.predict(ex) for s, ex in sets.items()}, benchmark="odmd-v1")
     return path
-
-
-def _add(root: Path, data_dir: Path, preds: Path, method: str, **over: Any) -> lb.Entry:
-    kwargs: dict[str, Any] = {
-        "method": method,
-        "name": method.upper(),
-        "description": "a test entry",
-        "paper": "none",
-        "code": "https://example.org/code",
-        "training_data": "none",
-        "command": f"odmd-bench baseline {method}",
-        "benchmark": "odmd-v1",
-        "split": "test",
-        "calibrated": False,
-        "date": "2026-01-02",
-        "data_dir": data_dir,
-    }
-    kwargs.update(over)
-    return lb.add_entry(root, preds, **kwargs)
 
 
 @pytest.fixture(scope="module")

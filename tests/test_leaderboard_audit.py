@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 import pytest
 from click.testing import CliRunner
-from conftest import recorded_plot
+from conftest import add_entry, recorded_plot
 
 from odmd_bench import leaderboard as lb
 from odmd_bench import methods
@@ -102,21 +102,12 @@ def _entry(root: Path, data_dir: Path, method: str, name: str, tmp: Path) -> Non
         cli, ["baseline", method, "--split", "test", "-o", str(preds), "--data-dir", str(data_dir)]
     )
     assert run.exit_code == 0, run.output
-    lb.add_entry(
+    add_entry(
         root,
+        data_dir,
         preds,
-        method=name,
-        name=name.upper(),
-        description="a test entry",
-        paper="none",
-        code="https://example.org/code",
-        training_data="none",
+        name,
         command=f"odmd-bench baseline {method} --benchmark odmd-v1 --split test -o predictions.csv",
-        benchmark="odmd-v1",
-        split="test",
-        calibrated=False,
-        date="2026-01-02",
-        data_dir=data_dir,
     )
 
 

@@ -28,6 +28,7 @@ from urllib.parse import parse_qs, urlsplit
 
 import pytest
 from click.testing import CliRunner
+from conftest import add_entry
 
 from odmd_bench import leaderboard as lb
 from odmd_bench.cli.main import cli
@@ -309,22 +310,7 @@ def small_board(v1_data_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> 
         write_predictions(
             preds, "test", {s: module.predict(ex) for s, ex in sets.items()}, benchmark="odmd-v1"
         )
-        lb.add_entry(
-            root,
-            preds,
-            method=method,
-            name=method.upper(),
-            description="a test entry",
-            paper="none",
-            code="https://example.org/code",
-            training_data="none",
-            command=f"odmd-bench baseline {method}",
-            benchmark="odmd-v1",
-            split="test",
-            calibrated=False,
-            date="2026-01-02",
-            data_dir=v1_data_dir,
-        )
+        add_entry(root, v1_data_dir, preds, method)
     entry = root / lb.ENTRIES / "box-ls" / "odmd-v1-test" / "entry.yaml"
     meta = yaml.safe_load(entry.read_text())
     meta["parameters"] = 0

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import add_entry
 
 import odmd_bench
 import odmd_bench.leaderboard as lb
@@ -113,22 +114,7 @@ def test_no_twin_in_the_data_folder_means_no_check_and_nothing_built(
 
 
 def _add(root: Path, data: Path, preds: Path, benchmark: str) -> lb.Entry:
-    return lb.add_entry(
-        root,
-        preds,
-        method="mine",
-        name="Mine",
-        description="a test entry",
-        paper="none",
-        code="https://example.org/code",
-        training_data="none",
-        command="my-method",
-        benchmark=benchmark,
-        split="test",
-        calibrated=False,
-        date="2026-01-02",
-        data_dir=data,
-    )
+    return add_entry(root, data, preds, "mine", name="Mine", command="my-method", benchmark=benchmark)
 
 
 def test_leaderboard_add_refuses_a_file_that_fits_the_other_board(both: Path, tmp_path: Path) -> None:
