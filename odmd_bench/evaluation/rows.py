@@ -21,11 +21,10 @@ import numpy as np
 from odmd_bench.data.registry import BENCHMARKS, SPLITS
 from odmd_bench.evaluation.kinds import MAX_ABS_DEPTH, NONFINITE, OUT_OF_RANGE, TOO_LARGE
 from odmd_bench.inputs.problems import SHOWN, Problems, clip, closest, show
+from odmd_bench.inputs.records import NONFINITE_CELL, NUMBER
 
 _INT = re.compile(r"[+-]?[0-9]+")
-_FLOAT = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
-_NONFINITE = re.compile(r"[+-]?(?:nan|inf|infinity)", re.IGNORECASE)
-_is_int, _is_float = _INT.fullmatch, _FLOAT.fullmatch
+_is_int, _is_float = _INT.fullmatch, NUMBER.fullmatch
 _NAN = float("nan")
 _BENCHMARK_NAMES = tuple(sorted(BENCHMARKS))
 #: Characters of text :meth:`Rows.add_clean` splits into cells at once (about 200,000
@@ -185,7 +184,7 @@ class Rows:
         """Record why a depth is refused; NaN stands for it from now on."""
         if depth == depth:  # a number, too large
             kind = TOO_LARGE if math.isinf(depth) else OUT_OF_RANGE
-        elif _NONFINITE.fullmatch(text):
+        elif NONFINITE_CELL.fullmatch(text):
             kind = NONFINITE
         else:
             kind = "depth is not a number"

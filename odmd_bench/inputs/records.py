@@ -14,6 +14,13 @@ from collections.abc import Iterator
 
 from odmd_bench.errors import ValidationError
 
+#: A number cell as every reader takes it: decimal, optional sign and exponent (no spaces,
+#: no ``nan`` or ``inf``, no ``_``); :data:`NUMBER_BYTES` the same on bytes.
+NUMBER = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
+NUMBER_BYTES = re.compile(NUMBER.pattern.encode("ascii"))
+#: A cell that names a non-finite number (refused as such, not as "no number").
+NONFINITE_CELL = re.compile(r"[+-]?(?:nan|inf|infinity)", re.IGNORECASE)
+
 # A physical line as ``io.StringIO(text, newline="")`` yields it, without copying the text.
 _LINE = re.compile(r"[^\r\n]*(?:\r\n?|\n)|[^\r\n]+")
 # A run of blank lines (nothing but spaces, tabs and commas) is passed over by one match of

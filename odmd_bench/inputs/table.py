@@ -14,21 +14,18 @@ alone says what a problem is. What the two give a clean file is the same.
 from __future__ import annotations
 
 import itertools
-import re
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.lib.stride_tricks import as_strided
 
 from odmd_bench.inputs.decimals import FRACTION_DIGITS, LITTLE_ENDIAN, parse_decimals
+from odmd_bench.inputs.records import NUMBER_BYTES
 
 #: Bytes of a file read at once (cut at a line end): the work arrays of a block stay in
 #: the processor's cache, where whole-array operations are several times faster than on
 #: arrays of the whole file.
 BLOCK_BYTES = 1 << 19
-#: The number pattern of the row-by-row reader (a cell the fast path does not convert is
-#: converted by ``float`` only when it matches).
-NUMBER = re.compile(rb"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
 _COMMA, _NEWLINE, _DOT = 44, 10, 46
 _SHORT_TEXT = 16  # text cells up to this many bytes are compared as two 8-byte words
 _KEEP_FIRST = np.array(
@@ -151,7 +148,7 @@ def _block(
     done |= empty
     for i in np.flatnonzero(~done).tolist():
         cell = data[start[i] : end[i]]
-        if NUMBER.fullmatch(cell) is None:
+        if NUMBER_BYTES.fullmatch(cell) is None:  # the row-by-row reader's pattern
             return None
         values[i] = float(cell)
     code = _factorize(data, buf, _starts(grid, np.array([text]), at)[0], grid[:, text], names)
@@ -241,4 +238,4 @@ def factorize(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.repeat(run_codes, np.diff(runs, append=n)), uniques
 
 
-__all__ = ["BLOCK_BYTES", "NUMBER", "Columns", "clean_columns", "factorize"]
+__all__ = ["BLOCK_BYTES", "Columns", "clean_columns", "factorize"]

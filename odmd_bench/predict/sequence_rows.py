@@ -10,7 +10,6 @@ problem goes to one :class:`~odmd_bench.inputs.problems.Problems`, located by li
 from __future__ import annotations
 
 import csv
-import re
 from dataclasses import dataclass
 
 import numpy as np
@@ -20,7 +19,7 @@ from odmd_bench.inputs.formats import OPTIONAL_SEQUENCE_COLUMNS as OPTIONAL_COLU
 from odmd_bench.inputs.formats import ORIENTATION_COLUMNS
 from odmd_bench.inputs.formats import SEQUENCE_COLUMNS as REQUIRED_COLUMNS
 from odmd_bench.inputs.problems import SHOWN, Problems, show
-from odmd_bench.inputs.records import CsvSyntaxError, csv_records
+from odmd_bench.inputs.records import NONFINITE_CELL, NUMBER, CsvSyntaxError, csv_records
 from odmd_bench.inputs.table import clean_columns, factorize
 
 _BOX = ("x1", "y1", "x2", "y2")
@@ -28,8 +27,6 @@ _CAM = ("cam_x", "cam_y", "cam_z")
 
 
 _NUMERIC = ("observation", *_BOX, *_CAM)
-_FLOAT = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
-_NONFINITE = re.compile(r"[+-]?(?:nan|inf|infinity)", re.IGNORECASE)
 
 
 @dataclass
@@ -173,9 +170,9 @@ def _cell(s: str, column: str, line: int, problems: Problems) -> float:
     """
     if not s:
         return np.nan
-    if _FLOAT.fullmatch(s):
+    if NUMBER.fullmatch(s):
         return float(s)
-    if _NONFINITE.fullmatch(s):
+    if NONFINITE_CELL.fullmatch(s):
         return np.inf
     problems.add(f"{column} is not a number", f"line {line} ({show(s)})")
     return 0.0
