@@ -136,6 +136,21 @@ def test_a_clean_file_reads_the_same_as_row_by_row() -> None:
         _assert_same(careful, fast)
 
 
+@pytest.mark.parametrize("end", ["\n", "\r\n"])
+def test_the_first_row_is_read_whole_whatever_the_line_ends(end: str) -> None:
+    text = end.join(
+        [
+            "sequence,observation,x1,y1,x2,y2,cam_x,cam_y,cam_z",
+            "seq1,1,100,100,140,150,0,0,0.5",
+            "seq1,2,101,100,141,150,0,0,0.4",
+            "",
+        ]
+    )
+    careful, fast = _both(text)
+    assert fast is not None and fast.sequence.tolist() == ["seq1", "seq1"]
+    _assert_same(careful, fast)
+
+
 @pytest.mark.parametrize(
     "change",
     [

@@ -69,8 +69,7 @@ def clean_columns(data: bytes, width: int, numbers: list[list[int]], text: int) 
         the file holds a quote, a lone ``\r`` or a NUL. ``data`` must be UTF-8 (only a
         text column may hold bytes beyond ASCII).
     """
-    header_end = data.find(b"\n") + 1
-    if header_end < FRACTION_DIGITS or b'"' in data or b"\x00" in data:
+    if b'"' in data or b"\x00" in data:
         return None
     if b"\r" in data:
         if data.count(b"\r") != data.count(b"\r\n"):
@@ -78,7 +77,8 @@ def clean_columns(data: bytes, width: int, numbers: list[list[int]], text: int) 
         data = data.replace(b"\r\n", b"\n")
     if not data.endswith(b"\n"):
         data += b"\n"
-    if header_end >= len(data):
+    header_end = data.find(b"\n") + 1  # of the data as read here (CRLF made LF)
+    if header_end < FRACTION_DIGITS or header_end >= len(data):
         return None
     buf = np.frombuffer(data, dtype=np.uint8)
     cols = np.asarray([c for group in numbers for c in group], dtype=np.int64)
