@@ -584,3 +584,98 @@ def test_browser_writes_a_screenshot_of_the_index(
     shot = Path(os.environ.get("ODMD_SITE_SCREENSHOT") or tmp_path_factory.mktemp("screenshot") / "index.png")
     page.screenshot(path=str(shot))
     assert shot.read_bytes().startswith(b"\x89PNG") and 10_000 < shot.stat().st_size < 300_000
+
+
+# ----------------------------------------------------------------------------- layout, in a real browser
+
+#: The widths the site is checked at: a laptop and a phone (390 px: an iPhone 12 to 15).
+WIDTHS = (1280, 390)
+
+_BOX = "e => { const r = e.getBoundingClientRect(); return [r.left, r.top, r.right, r.bottom]; }"
+
+
+@pytest.mark.parametrize("width", WIDTHS)
+def test_browser_no_page_is_wider_than_the_window(browser: tuple[Any, str], site: Path, width: int) -> None:
+    """Every page, at both widths: nothing (a hash, a command, a table) widens the page itself.
+
+    Wide tables scroll inside their own box (``.scroll``); the page does not.
+    """
+    page, base = browser
+    page.set_viewport_size({"width": width, "height": 900})
+    try:
+        wide = {}
+        for path in _pages(site):
+            page.goto(base + path.relative_to(site).as_posix())
+            inner, scroll = page.evaluate("[window.innerWidth, document.documentElement.scrollWidth]")
+            if scroll > inner:
+                wide[path.relative_to(site).as_posix()] = scroll
+        assert wide == {}, f"pages wider than the window ({width} px): {wide}"
+    finally:
+        page.set_viewport_size({"width": 1280, "height": 900})
+
+
+@pytest.mark.parametrize("width", WIDTHS)
+def test_browser_method_and_all_stay_in_view_on_every_board(
+    browser: tuple[Any, str], site: Path, width: int
+) -> None:
+    """Each board's Method and All cells are on screen and on top, the table scrolled to either end."""
+    page, base = browser
+    page.set_viewport_size({"width": width, "height": 900})
+    try:
+        page.goto(base + "index.html")
+        boards = page.eval_on_selector_all("table[data-board]", "ts => ts.map(t => t.dataset.board)")
+        assert boards
+        for board in boards:
+            table = f'table[data-board="{board}"]'
+            for end in ("left", "right"):
+                page.eval_on_selector(
+                    table,
+                    "(t, end) => { const s = t.parentElement; s.scrollLeft = end === 'left' ? 0 : s.scrollWidth;"
+                    " window.scrollTo(0, t.getBoundingClientRect().top + window.scrollY - 100); }",
+                    end,
+                )
+                for cell in (
+                    'th[data-key="method"]',
+                    'th[data-key="all"]',
+                    "tbody tr:first-child td.all",
+                    'tbody tr:first-child td[data-k="method"]',
+                ):
+                    box = page.eval_on_selector(f"{table} {cell}", _BOX)
+                    left, top, right, bottom = box
+                    assert left >= 0 and right <= width, (board, end, cell, box)
+                    # on top: what the browser finds at the cell's middle is the cell (or inside it)
+                    on_top = page.eval_on_selector(
+                        f"{table} {cell}",
+                        "e => { const r = e.getBoundingClientRect();"
+                        " const x = document.elementFromPoint((r.left + r.right) / 2, (r.top + r.bottom) / 2);"
+                        " return x === e || e.contains(x); }",
+                    )
+                    assert on_top, (board, end, cell)
+    finally:
+        page.set_viewport_size({"width": 1280, "height": 900})
+
+
+def test_browser_an_address_the_page_cannot_show_is_said_on_the_page(
+    browser: tuple[Any, str], board_json: dict[str, Any]
+) -> None:
+    page, base = browser
+    page.goto(f"{base}index.html?board=odmd-v1-tset&sort=robto&order=up&training=alien&colour=red")
+    box = page.locator("#view-problems")
+    assert box.is_visible()
+    text = box.text_content() or ""
+    assert text.startswith("The address asks for a view this page cannot show:")
+    assert "board=odmd-v1-tset is not a board of this site (odmd-paper-test, " in text
+    assert "sort=robto is not a column (group, method, " in text
+    assert "order=up is neither asc nor desc" in text
+    assert "training=alien is not one of none, " in text
+    assert "colour is not a setting of the view" in text
+    # what is shown instead is said too: every board, the board order
+    assert (
+        page.eval_on_selector_all("section[data-board-section]", "s => s.filter(x => x.hidden).length") == 0
+    )
+    # a view chosen on the page is one it can show: the message goes
+    page.select_option("#controls select[name=board]", "odmd-v1-test")
+    assert not box.is_visible()
+    for good in ("", "?board=odmd-v1-test&sort=all&order=desc&training=generator"):
+        page.goto(f"{base}index.html{good}")
+        assert not page.locator("#view-problems").is_visible()
