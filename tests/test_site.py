@@ -333,9 +333,11 @@ def test_two_builds_with_figures_are_identical(small_board: Path, v1_data_dir: P
     assert figures == [
         "figures/box-ls--odmd-v1-test.png",
         "figures/expansion--odmd-v1-test.png",
-        "figures/speed.png",
+        "figures/speed.svg",
     ]
-    assert all(first[f].startswith(b"\x89PNG") for f in figures)
+    assert all(first[f].startswith(b"\x89PNG") for f in figures[:2])
+    assert first["figures/speed.svg"].startswith(b"<?xml") and b"<text" in first["figures/speed.svg"]
+    assert 'src="figures/speed.svg"' in first["index.html"].decode()
     page = first["methods/expansion.html"].decode()
     assert 'src="../figures/expansion--odmd-v1-test.png"' in page and "No figure" not in page
     assert "1 entries record their speed; 1 do not" in first["index.html"].decode()
@@ -679,3 +681,81 @@ def test_browser_an_address_the_page_cannot_show_is_said_on_the_page(
     for good in ("", "?board=odmd-v1-test&sort=all&order=desc&training=generator"):
         page.goto(f"{base}index.html{good}")
         assert not page.locator("#view-problems").is_visible()
+
+
+def _speed_points(site: Path) -> tuple[list[SpeedPoint], list[str]]:
+    """The built board's entries that record a speed, and its boards."""
+    data = json.loads((site / "downloads" / "leaderboard.json").read_text(encoding="utf-8"))
+    points, boards = [], []
+    for b in data["boards"]:
+        bid = f"{b['benchmark']}-{b['split']}"
+        boards.append(bid)
+        for r in b["rows"]:
+            speed = r["metadata"].get("speed")
+            if speed:
+                points.append(SpeedPoint(bid, r["name"], float(speed["examples_per_second"]), r["all"]))
+    return points, boards
+
+
+def test_browser_the_speed_figures_labels_neither_overlap_nor_leave_it(
+    browser: tuple[Any, str], site: Path, tmp_path: Path
+) -> None:
+    """The committed board's figure and a crowded one, drawn by Chromium: every text's box, measured.
+
+    No two texts (point labels, ticks, titles, legend) share a pixel, and every one is
+    inside the figure. The crowded board has eight front points in one decade of speed
+    and a few percent of All, with long names.
+    """
+    pytest.importorskip("matplotlib")
+    from odmd_bench.leaderboard.site.figures import speed_svg
+
+    points, boards = _speed_points(site)
+    assert points
+    # eight on the front (faster, worse), four behind it
+    crowded = [
+        SpeedPoint("crowded", f"A rather long method name {i} (variant)", 1000 * 1.4**i, 4.0 + 1.1 * i)
+        for i in range(8)
+    ]
+    crowded += [SpeedPoint("crowded", f"dominated {i}", 900 * 1.3**i, 14.0) for i in range(4)]
+    page, base = browser
+    for name, svg in (
+        ("committed", speed_svg(points, boards)),
+        ("crowded", speed_svg(crowded, ["crowded"])),
+    ):
+        text = svg.decode("utf-8")
+        page.set_content(
+            "<!DOCTYPE html><html><body style='margin:0'>" + text[text.index("<svg") :] + "</body></html>"
+        )
+        found = page.evaluate(
+            """() => {
+                const svg = document.querySelector("svg");
+                const v = svg.getBoundingClientRect();
+                const texts = Array.from(svg.querySelectorAll("text")).filter(t => !t.parentElement.closest("text"));
+                return { view: [v.left, v.top, v.right, v.bottom], texts: texts.map(t => {
+                    const r = t.getBoundingClientRect();
+                    return [t.textContent.trim(), r.left, r.top, r.right, r.bottom]; }) };
+            }"""
+        )
+        left, top, right, bottom = found["view"]
+        texts = [t for t in found["texts"] if t[0]]
+        labels = {t[0] for t in texts}
+        drawn = points if name == "committed" else crowded
+        front = {
+            p.name.split(" (")[0]
+            for b in [*boards, "crowded"]
+            for p in pareto([q for q in drawn if q.board == b])
+        }
+        assert front <= labels, (name, front - labels)
+        outside = [t for t in texts if t[1] < left or t[2] < top or t[3] > right or t[4] > bottom]
+        assert outside == [], (name, outside)
+        overlapping = [
+            (a[0], b[0])
+            for i, a in enumerate(texts)
+            for b in texts[i + 1 :]
+            if min(a[3], b[3]) - max(a[1], b[1]) > 0 and min(a[4], b[4]) - max(a[2], b[2]) > 0
+        ]
+        assert overlapping == [], (name, overlapping)
+        shot = tmp_path / f"speed-{name}.png"
+        page.screenshot(path=str(shot), full_page=True)  # for review: look at it
+        assert shot.stat().st_size > 10_000
+    page.goto(base + "index.html")  # the page for the tests after this one
