@@ -574,3 +574,22 @@ def test_the_documented_plug_in_with_options_runs_as_documented(
     assert "Options of method my-method" in shown.output and "--shape [flat|ramp]" in shown.output
     refused = CliRunner().invoke(cli, [*args, "--mode", "scale"])
     assert "--mode applies to robust only, not to 'my-method'" in refused.output
+
+
+def test_an_unknown_method_asked_for_help_says_so_and_completion_still_works(plugins: Path) -> None:
+    result = CliRunner().invoke(cli, ["baseline", "boxls", "--help"])
+    assert (
+        result.exit_code == 2 and "no method 'boxls' is registered; did you mean 'box-ls'?" in result.output
+    )
+    listed = CliRunner().invoke(cli, ["baseline", "boxls", "--list"])
+    assert listed.exit_code == 0 and "declared: " in listed.output
+    env = {
+        "_ODMD_BENCH_COMPLETE": "bash_complete",
+        "COMP_WORDS": "odmd-bench baseline boxls --",
+        "COMP_CWORD": "3",
+    }
+    done = CliRunner().invoke(cli, [], env=env, prog_name="odmd-bench")
+    assert done.exit_code == 0 and "--split" in done.output and "Traceback" not in done.output
+    env["COMP_WORDS"] = "odmd-bench baseline declared --s"
+    done = CliRunner().invoke(cli, [], env=env, prog_name="odmd-bench")
+    assert "--scale" in done.output and "--shape" in done.output and "--split" in done.output

@@ -136,12 +136,18 @@ class MethodCommand(click.Command):
             try:
                 method = methods.load(name)
             except UsageError:
-                if not any(a in (*ctx.help_option_names, "--list") for a in args):
+                # --list lists every method, the broken ones too; shell completion
+                # (resilient parsing) completes a name being typed
+                if not (ctx.resilient_parsing or "--list" in args):
                     raise
         ctx.meta[_METHOD] = method
         if method is not None:
-            ctx.meta[_PARAMS] = self._method_params(method)
-            self._refuse_undeclared(ctx, method, args)
+            try:
+                ctx.meta[_PARAMS] = self._method_params(method)
+                self._refuse_undeclared(ctx, method, args)
+            except UsageError:
+                if not ctx.resilient_parsing:
+                    raise
         return super().parse_args(ctx, args)
 
     def _method_params(self, method: Any) -> list[click.Option]:
