@@ -547,6 +547,43 @@ def check_options(method: Method, options: Mapping[str, Any], spell: Callable[[s
         raise UsageError(f"options that {method.name!r} does not take", problems)
 
 
+def recorded_options(
+    command: str, options: Mapping[str, object] | None = None
+) -> tuple[str, dict[str, object]]:
+    """The method and the option values a leaderboard entry records (its ``command``, its ``options``).
+
+    An entry that records ``options`` (option keyword -> a YAML scalar) has them; one
+    that does not (the entries made before the field) has those of its command. Where
+    both are recorded they must agree: the command is what a reader re-runs. Nothing is
+    loaded; :meth:`Method.values` checks and converts the values for ``run``.
+
+    Returns:
+        ``(NAME, {option keyword: value})``.
+
+    Raises:
+        ValueError: the command is not an ``odmd-bench baseline NAME ...`` one, or it
+            gives other options or values than ``options``, in words.
+
+    Example:
+        >>> recorded_options("odmd-bench baseline robust --mode scale --split test", {"mode": "scale"})
+        ('robust', {'mode': 'scale'})
+    """
+    name, given, _own = parse_command(command)
+    if options is None:
+        return name, dict(given)
+    written = {k: format_value(v) for k, v in options.items()}
+    if written != given:
+        differ = sorted(k for k in {*written, *given} if written.get(k) != given.get(k))
+        raise ValueError(
+            "its options and its command disagree on "
+            + ", ".join(
+                f"{k} (options: {written.get(k, 'not given')}, command: {given.get(k, 'not given')})"
+                for k in differ
+            )
+        )
+    return name, dict(options)
+
+
 def _entry_points() -> list[metadata.EntryPoint]:
     return list(metadata.entry_points(group=GROUP))
 
@@ -614,4 +651,5 @@ __all__ = [
     "load",
     "names",
     "parse_command",
+    "recorded_options",
 ]

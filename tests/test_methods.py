@@ -593,3 +593,23 @@ def test_an_unknown_method_asked_for_help_says_so_and_completion_still_works(plu
     env["COMP_WORDS"] = "odmd-bench baseline declared --s"
     done = CliRunner().invoke(cli, [], env=env, prog_name="odmd-bench")
     assert "--scale" in done.output and "--shape" in done.output and "--split" in done.output
+
+
+def test_recorded_options_are_the_entrys_or_its_commands_and_must_agree() -> None:
+    command = (
+        "odmd-bench baseline dbox --config p-z --selection per-set --benchmark odmd-v1 --split test -o p.csv"
+    )
+    assert methods.recorded_options(command) == ("dbox", {"config": "p-z", "selection": "per-set"})
+    recorded = {"config": "p-z", "selection": "per-set"}
+    assert methods.recorded_options(command, recorded) == ("dbox", recorded)
+    with pytest.raises(ValueError, match=r"disagree on config \(options: ns, command: p-z\)"):
+        methods.recorded_options(command, {"config": "ns", "selection": "per-set"})
+    with pytest.raises(ValueError, match=r"disagree on device \(options: cuda, command: not given\)"):
+        methods.recorded_options(command, {**recorded, "device": "cuda"})
+    # YAML scalars are compared as the command writes them
+    assert methods.recorded_options("odmd-bench baseline mine --loud true --n 3", {"loud": True, "n": 3})[
+        1
+    ] == {
+        "loud": True,
+        "n": 3,
+    }
