@@ -472,7 +472,12 @@ def test_help_and_list_show_a_methods_options(plugins: Path) -> None:
     assert "--loud BOOLEAN" in mine and "[default: false]" in mine
     assert "--split" not in mine and "--split" in shown.output  # the command's own, above
     plain = CliRunner().invoke(cli, ["baseline", "--help"], terminal_width=200)
-    assert "odmd-bench baseline NAME --help" in plain.output and "Options of method" not in plain.output
+    assert (
+        "odmd-bench baseline NAME --help lists them" in plain.output
+        and "Options of method" not in plain.output
+    )
+    plain = CliRunner().invoke(cli, ["predict", "--help"], terminal_width=200)
+    assert "odmd-bench predict --method NAME --help lists them" in plain.output
     robust = CliRunner().invoke(cli, ["baseline", "robust", "--help"], terminal_width=200)
     assert "--mode [full|scale]" in robust.output and "--combine" not in robust.output
     none = CliRunner().invoke(cli, ["baseline", "thirdparty", "--help"])

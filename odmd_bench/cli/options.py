@@ -209,9 +209,11 @@ class MethodCommand(click.Command):
         method = ctx.meta.get(_METHOD)
         if method is None:
             formatter.write_paragraph()
+            param = next((p for p in self.params if p.name == self.method_param), None)
+            named = "NAME" if isinstance(param, click.Argument) else f"{param.opts[0] if param else ''} NAME"
             formatter.write_text(
-                "A method's own options follow the method's name; odmd-bench baseline NAME --help "
-                "lists them (odmd-bench baseline --list lists every method's)."
+                f"The options a method declares are options of this command too: odmd-bench {self.name} "
+                f"{named} --help lists them (odmd-bench baseline --list lists every method's)."
             )
             return
         mine = [r for p in extra if (r := p.get_help_record(ctx))]
