@@ -414,7 +414,7 @@ def declaration_problems(declared: object, functions: Sequence[Callable[..., Any
                 problems.append(f"{where}: {fname}() does not take it")
                 continue
             p = _parameter(f, o.name)
-            if p is not None and p.default is not p.empty and p.default != o.default:
+            if p is not None and p.default is not p.empty and not _same(p.default, o.default):
                 problems.append(f"{where}: its default {o.default!r} is not {fname}()'s, {p.default!r}")
     return problems
 
@@ -605,6 +605,14 @@ def _missing(error: ModuleNotFoundError, name: str, target: str = "") -> Excepti
     if missing and not is_installed(missing):
         return missing_module_error(error, f"method {name!r}")
     return error
+
+
+def _same(a: object, b: object) -> bool:
+    """``a == b`` as one truth (an array's elementwise answer, or an error, is ``False``)."""
+    try:
+        return bool(a == b)
+    except Exception:  # an array of several values, or a comparison that raises
+        return False
 
 
 def _parameter(function: Callable[..., Any], keyword: str) -> inspect.Parameter | None:

@@ -618,3 +618,12 @@ def test_recorded_options_are_the_entrys_or_its_commands_and_must_agree() -> Non
         "loud": True,
         "n": 3,
     }
+
+
+def test_a_declaration_against_an_array_default_is_a_problem_not_a_crash() -> None:
+    def predict_report(examples: object, scale: object = np.ones(3)) -> None: ...
+
+    option = methods.MethodOption("scale", float, 1.0, "x")
+    assert methods.declaration_problems((option,), (predict_report,)) == [
+        "option 'scale': its default 1.0 is not predict_report()'s, array([1., 1., 1.])"
+    ]
