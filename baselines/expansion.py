@@ -49,6 +49,7 @@ The output never holds NaN or infinity.
 from __future__ import annotations
 
 import numpy as np
+from odmd_bench_baselines import parallax
 from odmd_bench_baselines.parallax import Combine, Fill, check_combine, combine_halves, endpoint_boxes
 
 import odmd_bench
@@ -58,6 +59,9 @@ DEFAULT_FALLBACK_DEPTH = 1.0
 
 #: Fallback reasons, in order of precedence.
 FALLBACKS: tuple[str, ...] = ("no_detection", "non_finite_w", "non_finite_h", "non_finite")
+
+#: The options ``odmd-bench baseline`` and ``predict`` give it: parallax's (``combine``), declared once.
+OPTIONS = parallax.OPTIONS
 
 
 def predict_report(

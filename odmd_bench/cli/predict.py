@@ -11,7 +11,7 @@ from typing import Any
 
 import click
 
-from odmd_bench.cli.options import given_options, method_options, same_file
+from odmd_bench.cli.options import MethodCommand, given_options, same_file
 from odmd_bench.errors import UsageError
 
 
@@ -47,10 +47,14 @@ def error_summary(truth: Any, depth: Any) -> str:
     return "\n".join(lines)
 
 
-@click.command()
+@click.command(cls=MethodCommand, method_param="method_name")
 @click.argument("sequences", metavar="SEQUENCES.csv")
 @click.option(
-    "--method", "method_name", required=True, help="Registered method (odmd-bench baseline --list)."
+    "--method",
+    "method_name",
+    required=True,
+    help="Registered method (odmd-bench baseline --list); the options it declares follow "
+    "(odmd-bench predict --method NAME --help lists them).",
 )
 @click.option(
     "--image-size",
@@ -81,7 +85,6 @@ def error_summary(truth: Any, depth: Any) -> str:
     default=None,
     help="Depths CSV to write; '-' for standard output (default: SEQUENCES-METHOD.csv here).",
 )
-@method_options
 def predict(
     sequences: str,
     method_name: str,
@@ -89,7 +92,7 @@ def predict(
     intrinsics: tuple[float, float, float, float] | None,
     normalized_boxes: bool,
     output: str | None,
-    **method_values: Any,  # the options of method_options (METHOD_OPTIONS)
+    **method_values: Any,  # the options the method declares (MethodCommand)
 ) -> None:
     """Estimate the depth at the last observation of every sequence in SEQUENCES.csv.
 

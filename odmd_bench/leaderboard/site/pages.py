@@ -545,11 +545,11 @@ def _speed_section(site: SiteData, figures: bool, files: dict[str, bytes]) -> st
     )
     if not figures:
         return said + NO_PLOT
-    from odmd_bench.leaderboard.site.figures import speed_png
+    from odmd_bench.leaderboard.site.figures import speed_svg
 
-    files["figures/speed.png"] = speed_png(points, [b.id for b in site.boards])
+    files["figures/speed.svg"] = speed_svg(points, [b.id for b in site.boards])
     return said + (
-        '<p><img class="figure" src="figures/speed.png" alt="All against examples per second per board, the '
+        '<p><img class="figure" src="figures/speed.svg" alt="All against examples per second per board, the '
         'Pareto front marked"></p>\n<p class="meta">The Pareto front (red) joins the entries that no other entry '
         "beats on both speed and All. Each speed was measured where its entry says (the device shows when you "
         "hover over a speed; the method page names the command).</p>"
