@@ -8,6 +8,9 @@ them, here each failure the issue names is checked on its own, small and fast.
 from __future__ import annotations
 
 import dataclasses
+import os
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -23,6 +26,7 @@ from odmd_bench.cli.main import cli
 from odmd_bench.data.scale import implied_depth
 from odmd_bench.predict import predict_sequences
 from odmd_bench.predict.checks import method_warnings, scale_warnings
+from odmd_bench.predict.convention import FLOOR_PIXELS, RATIO, compare, convention_problem
 from odmd_bench.predict.orientation import (
     carry_boxes,
     quaternions,
@@ -413,3 +417,144 @@ def test_both_readers_read_the_orientation_alike() -> None:
         np.testing.assert_array_equal(a.camera, b.camera)
         np.testing.assert_array_equal(a.extras["rotation"], b.extras["rotation"])
     np.testing.assert_array_equal(fast.turn, careful.turn)
+
+
+# --- the orientation's convention (issue 45) ----------------------------------------------------
+
+#: The convention mistakes of the issue: the inverse (world-to-camera), the scalar first, both.
+WRONG = {
+    "inverse": lambda q: q * [-1.0, -1.0, -1.0, 1.0],
+    "wxyz": lambda q: q[..., [3, 0, 1, 2]],
+    "both": lambda q: (q * [-1.0, -1.0, -1.0, 1.0])[..., [3, 0, 1, 2]],
+}
+#: The options that say so.
+SAYS = {
+    "inverse": ["--orientation", "world-to-camera"],
+    "wxyz": ["--quaternion-order", "wxyz"],
+    "both": ["--orientation", "world-to-camera", "--quaternion-order", "wxyz"],
+}
+
+
+def _judge(s: Scenes, q: np.ndarray) -> str | None:
+    given, others = compare([(s.corners, s.positions, q)], INTRINSICS, "camera-to-world", "xyzw")
+    return convention_problem(given, others, "camera-to-world", "xyzw")
+
+
+@pytest.mark.parametrize("motion", ["ground", "forward", "free"])
+def test_right_orientations_are_never_refused_on_noisy_scenes(motion: str) -> None:
+    # 30 seeds x 4 turns x 20 noisy sequences per motion: the documented margin holds
+    # (the convention given never fits worse than RATIO times another).
+    worst = 0.0
+    for seed in range(30):
+        for turn in (0.0, 5.0, 15.0, 30.0):
+            s = make_scenes(20, motion, turn=turn, noise=True, rng=seed, oriented=True)
+            given, others = compare(
+                [(s.corners, s.positions, s.orientation)], INTRINSICS, "camera-to-world", "xyzw"
+            )
+            assert convention_problem(given, others, "camera-to-world", "xyzw") is None, (seed, turn)
+            for res in others.values():
+                worst = max(worst, float(np.nanmax(given / np.maximum(res, FLOOR_PIXELS))))
+    assert worst < RATIO / 2
+
+
+@pytest.mark.parametrize("mistake", list(WRONG))
+@pytest.mark.parametrize("motion", ["ground", "forward", "free"])
+def test_every_convention_mistake_is_refused_on_noisy_scenes(mistake: str, motion: str) -> None:
+    for seed in range(10):
+        for turn in (0.0, 15.0):
+            s = make_scenes(20, motion, turn=turn, noise=True, rng=seed, oriented=True)
+            said = _judge(s, WRONG[mistake](s.orientation))
+            assert said is not None, (seed, turn)
+            if mistake != "wxyz":
+                assert "the quaternions look world-to-camera" in said
+            if mistake != "inverse":
+                assert (
+                    "w first? the components look written w, x, y, z: add `--quaternion-order wxyz`" in said
+                )
+
+
+@pytest.mark.parametrize("mistake", list(WRONG))
+def test_no_method_answers_silently_wrong_under_a_convention_mistake(tmp_path: Path, mistake: str) -> None:
+    s = make_scenes(12, "ground", turn=15.0, rng=3)
+    text = dataclasses.replace(s, orientation=WRONG[mistake](s.orientation)).csv()
+    for method in ("box-ls", "expansion", "parallax", "robust"):
+        r = _invoke(tmp_path, text, "--method", method, *SIZE, *K)
+        assert r.exit_code == 2, (method, r.output)
+        assert "the camera orientations disagree with the boxes" in r.stderr
+        assert "shape" not in r.stderr
+        # Said so, every method is exact again.
+        r = _invoke(tmp_path, text, "--method", method, *SIZE, *K, *SAYS[mistake])
+        assert r.exit_code == 0, (method, r.output)
+        err = [float(row.split(",")[5]) for row in r.stdout.splitlines()[1:]]
+        assert max(err) < 1e-6, method
+
+
+def test_a_convention_option_that_the_file_contradicts_is_refused_naming_it(tmp_path: Path) -> None:
+    text = make_scenes(12, "free", turn=10.0, rng=4).csv()
+    r = _invoke(tmp_path, text, "--method", "robust", *SIZE, *K, "--orientation", "world-to-camera")
+    assert r.exit_code == 2
+    assert "the quaternions look camera-to-world: drop `--orientation world-to-camera`" in r.stderr
+    r = _invoke(tmp_path, text, "--method", "robust", *SIZE, *K, "--quaternion-order", "wxyz")
+    assert r.exit_code == 2
+    assert "the components look written x, y, z, w: drop `--quaternion-order wxyz`" in r.stderr
+
+
+def test_the_convention_is_checked_without_intrinsics_by_the_sizes() -> None:
+    # A camera that does not turn (no intrinsics needed), in a fixed frame turned at random:
+    # the inverse puts the travel in the wrong axes, and the box sizes say so.
+    s = make_scenes(12, "free", rng=13, oriented=True)
+    with pytest.raises(ValidationError, match="the quaternions look world-to-camera"):
+        _read(dataclasses.replace(s, orientation=WRONG["inverse"](s.orientation)), None)
+    np.testing.assert_allclose(_errors(_read(s, None), "box-ls"), 0.0, atol=1e-9)
+
+
+def test_a_quaternion_far_from_unit_length_is_refused_even_where_its_square_overflows(tmp_path: Path) -> None:
+    s = make_scenes(4, "ground", turn=10.0, rng=3)
+    q = s.orientation.copy()
+    q[0, 4] *= 1e200  # (squared: beyond float64; the check once let it through)
+    q[1, 2] *= 1e-200
+    q[2, 3] *= 1.0005  # within the tolerance: normalised
+    text = dataclasses.replace(s, orientation=q).csv()
+    with pytest.raises(ValidationError) as info:
+        _read(text)
+    said = str(info.value)
+    assert "orientation not a unit quaternion (its length differs from 1 by more than 0.001) (2 rows)" in said
+    assert "line 6 ('1e+200'), line 14 ('1e-200')" in said
+    q[0, 4] /= 1e200
+    q[1, 2] /= 1e-200
+    np.testing.assert_allclose(
+        _errors(_read(dataclasses.replace(s, orientation=q).csv()), "robust"), 0, atol=1e-9
+    )
+
+
+@pytest.mark.parametrize("factor", [1e200, 1.0])
+def test_no_numpy_warning_reaches_the_user(tmp_path: Path, factor: float) -> None:
+    s = make_scenes(6, "free", turn=12.0, noise=True, rng=8)
+    q = s.orientation.copy()
+    q[0, 4] *= factor
+    path = tmp_path / "seqs.csv"
+    path.write_text(dataclasses.replace(s, orientation=q).csv())
+    for method in ("box-ls", "expansion", "parallax", "robust"):
+        r = subprocess.run(
+            [
+                sys.executable,
+                "-W",
+                "error",
+                "-m",
+                "odmd_bench",
+                "predict",
+                str(path),
+                "--method",
+                method,
+                *SIZE,
+                *K,
+                "-o",
+                "-",
+            ],
+            capture_output=True,
+            text=True,
+            env={**os.environ, "PYTHONWARNINGS": "error"},
+            check=False,
+        )
+        assert r.returncode == (2 if factor != 1.0 else 0), r.stderr
+        assert "Warning" not in r.stderr and "Traceback" not in r.stderr, r.stderr

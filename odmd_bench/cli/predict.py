@@ -7,12 +7,15 @@ The format is :mod:`odmd_bench.predict.sequences`'s; the method is any registere
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import click
 
 from odmd_bench.cli.options import given_options, method_options, same_file
 from odmd_bench.errors import UsageError
+
+if TYPE_CHECKING:
+    from odmd_bench.predict.convention import Order, Orientation
 
 
 def default_output(source: str, method: str) -> Path:
@@ -76,6 +79,22 @@ def error_summary(truth: Any, depth: Any) -> str:
     help="The boxes are fractions of the image (0 to 1), not pixels: multiplied by W and H.",
 )
 @click.option(
+    "--orientation",
+    type=click.Choice(["camera-to-world", "world-to-camera"]),
+    default="camera-to-world",
+    show_default=True,
+    help="What the quaternions cam_qx..cam_qw rotate: camera coordinates into the fixed frame "
+    "(the format's), or the inverse.",
+)
+@click.option(
+    "--quaternion-order",
+    type=click.Choice(["xyzw", "wxyz"]),
+    default="xyzw",
+    show_default=True,
+    help="The order of the quaternion's components in the columns cam_qx, cam_qy, cam_qz, cam_qw: "
+    "x, y, z, w (the format's, TUM's) or w, x, y, z (Eigen's).",
+)
+@click.option(
     "-o",
     "--output",
     default=None,
@@ -88,6 +107,8 @@ def predict(
     image_size: tuple[float, float],
     intrinsics: tuple[float, float, float, float] | None,
     normalized_boxes: bool,
+    orientation: Orientation,
+    quaternion_order: Order,
     output: str | None,
     **method_values: Any,  # the options of method_options (METHOD_OPTIONS)
 ) -> None:
@@ -121,7 +142,14 @@ def predict(
     method = methods.load(method_name)
     options = given_options(method, **method_values)
 
-    seqs = read_sequences(sequences, image_size, intrinsics, normalized_boxes=normalized_boxes)
+    seqs = read_sequences(
+        sequences,
+        image_size,
+        intrinsics,
+        normalized_boxes=normalized_boxes,
+        orientation=orientation,
+        quaternion_order=quaternion_order,
+    )
     result = predict_sequences(seqs, method, **options)
     text = format_depths(result)
     to_stdout = output == "-"
