@@ -29,6 +29,9 @@ from odmd_bench_baselines.robust.solver import fit
 
 from odmd_bench import DataError, Examples, UsageError, carry_boxes, fill_missing
 
+#: The counts of :func:`predict_report` that are fallbacks (``odmd_bench.predict.report``).
+FALLBACKS: tuple[str, ...] = ("fit_failed", "too_few_detections")
+
 
 def predict(
     examples: Examples,

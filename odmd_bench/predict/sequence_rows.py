@@ -227,7 +227,12 @@ def check_rows(rows: Rows, problems: Problems) -> None:
         if rows.orientation is not None:
             q = rows.orientation
             for j, c in enumerate(ORIENTATION_COLUMNS):
-                problems.add_lines(f"{c} is empty", np.isnan(q[:, j]), lines)
+                problems.add_lines(
+                    f"{c} is empty (a camera that does not turn, its positions in its own axes: "
+                    "cam_qx, cam_qy, cam_qz, cam_qw = 0, 0, 0, 1)",
+                    np.isnan(q[:, j]),
+                    lines,
+                )
                 problems.add_lines(f"{c} is not finite", np.isinf(q[:, j]), lines)
             norm = quaternion_norms(q)
             off = np.isfinite(norm) & ~(np.abs(norm - 1) <= UNIT_TOLERANCE)

@@ -383,24 +383,47 @@ def read_sequences(
         source=where,
         ignored_columns=ignored,
         attrs=attrs,
-        warnings=_outside_image(rows.numbers[:, 1:5], rows.lines, size) + _pose_like(ignored),
+        warnings=_outside_image(rows.numbers[:, 1:5], rows.lines, size)
+        + _pose_like(ignored)
+        + _depth_like(ignored, "depth" in header),
         turn=turn,
         oriented=rows.orientation is not None,
     )
 
 
 def _pose_like(ignored: tuple[str, ...]) -> tuple[str, ...]:
-    """A warning for each ignored column whose name looks like an orientation or a pose."""
-    out = []
+    """One warning naming the ignored columns whose names look like an orientation or a pose."""
+    found = []
     for name in ignored:
         low = name.lower()
         if low.startswith(("q", "rot")) or any(w in low for w in ("quat", "roll", "pitch", "yaw")):
-            out.append(
-                f"column {show(name)} looks like a camera orientation but is not read: the orientation is "
-                "read from cam_qx, cam_qy, cam_qz, cam_qw (a unit quaternion, x y z w, rotating camera "
-                "coordinates into the fixed frame; docs/own-data.md)"
-            )
-    return tuple(out)
+            found.append(name)
+    if not found:
+        return ()
+    many = len(found) > 1
+    return (
+        f"column{'s' if many else ''} {', '.join(show(n) for n in found)} look{'' if many else 's'} like a "
+        f"camera orientation but {'are' if many else 'is'} not read: the orientation is read from cam_qx, "
+        "cam_qy, cam_qz, cam_qw (a unit quaternion, x y z w, rotating camera coordinates into the fixed "
+        "frame; --quaternion-order wxyz and --orientation world-to-camera for the other conventions; "
+        "docs/own-data.md)",
+    )
+
+
+def _depth_like(ignored: tuple[str, ...], has_depth: bool) -> tuple[str, ...]:
+    """A warning where no ``depth`` column is read but an ignored one is named much like it."""
+    if has_depth:
+        return ()
+    import difflib
+
+    near = difflib.get_close_matches("depth", [n.lower() for n in ignored], n=1, cutoff=0.6)
+    if not near:
+        return ()
+    name = next(n for n in ignored if n.lower() == near[0])
+    return (
+        f"column {show(name)} is not read: did you mean `depth` (the true depth in metres, which the "
+        "estimates are scored against)? Without a column named depth no error is given",
+    )
 
 
 def _outside_image(corners: np.ndarray, lines: np.ndarray, size: tuple[float, float]) -> tuple[str, ...]:
