@@ -108,7 +108,7 @@ def residuals(
     rel = relative_rotations(r)
     c = positions_in_last(positions, r)
     rt = np.swapaxes(rel, -1, -2)  # R_k^T: last axes -> observation k's
-    rc = np.einsum("nkij,nkj->nki", rt, c)  # R_k^T c_k
+    rc = (rt @ c[..., None])[..., 0]  # R_k^T c_k (matmul: several times einsum's speed here)
     x1, y1, x2, y2 = np.moveaxis(np.asarray(corners, dtype=np.float64), -1, 0)
     seen = np.isfinite(x1) & np.isfinite(y1) & np.isfinite(x2) & np.isfinite(y2)
     w, h = np.where(seen, x2 - x1, 0.0), np.where(seen, y2 - y1, 0.0)
@@ -136,15 +136,16 @@ def residuals(
         scale = np.sqrt((a * a).sum(axis=1))
         scale = np.where(scale > 0, scale, 1.0)
         an = a / scale[:, None, :]
-        gram = np.einsum("nmi,nmj->nij", an, an) + 1e-12 * np.eye(5)
-        rhs_n = np.einsum("nmi,nm->ni", an, rhs)
+        ant = np.swapaxes(an, 1, 2)
+        gram = ant @ an + 1e-12 * np.eye(5)
+        rhs_n = (ant @ rhs[..., None])[..., 0]
         ok = np.isfinite(gram).all(axis=(1, 2)) & np.isfinite(rhs_n).all(axis=1)
         sol = np.zeros((n, 5))
         if ok.any():
             sol[ok] = np.linalg.solve(gram[ok], rhs_n[ok][..., None])[..., 0]
         sol = sol / scale
         p = sol[:, None, :3]
-        pk = np.einsum("nkij,nkj->nki", rt, np.broadcast_to(p, c.shape) - c)
+        pk = (rt @ (p - c)[..., None])[..., 0]
         z = pk[..., 2]
         diff = [w - sol[:, None, 3] / z, h - sol[:, None, 4] / z]
         if intrinsics is not None:
