@@ -457,26 +457,39 @@ SAYS = {
 }
 
 
-def _judge(s: Scenes, q: np.ndarray) -> str | None:
-    given, others = compare([(s.corners, s.positions, q)], INTRINSICS, "camera-to-world", "xyzw")
-    return convention_problem(given, others, "camera-to-world", "xyzw")
+def _judge(s: Scenes, q: np.ndarray, k: tuple[float, float, float, float] = INTRINSICS) -> str | None:
+    given, others, sizes = compare([(s.corners, s.positions, q)], k, "camera-to-world", "xyzw")
+    return convention_problem(given, others, sizes, "camera-to-world", "xyzw")
 
 
 @pytest.mark.parametrize("motion", ["ground", "forward", "free"])
 def test_right_orientations_are_never_refused_on_noisy_scenes(motion: str) -> None:
     # 30 seeds x 4 turns x 20 noisy sequences per motion: the documented margin holds
-    # (the convention given never fits worse than RATIO times another).
+    # (the convention given never fits worse than 3/4 RATIO times another: measured 2.3 at most).
     worst = 0.0
     for seed in range(30):
         for turn in (0.0, 5.0, 15.0, 30.0):
             s = make_scenes(20, motion, turn=turn, noise=True, rng=seed, oriented=True)
-            given, others = compare(
+            given, others, sizes = compare(
                 [(s.corners, s.positions, s.orientation)], INTRINSICS, "camera-to-world", "xyzw"
             )
-            assert convention_problem(given, others, "camera-to-world", "xyzw") is None, (seed, turn)
+            assert convention_problem(given, others, sizes, "camera-to-world", "xyzw") is None, (seed, turn)
             for res in others.values():
                 worst = max(worst, float(np.nanmax(given / np.maximum(res, FLOOR_PIXELS))))
-    assert worst < RATIO / 2
+    assert worst < 0.75 * RATIO
+
+
+@pytest.mark.parametrize(
+    "k", [(1000.0, 1000.0, 320.0, 240.0), (250.0, 250.0, 320.0, 240.0), (500.0, 500.0, 640.0, 480.0)]
+)
+def test_wrong_intrinsics_do_not_blame_the_quaternions(k: tuple[float, float, float, float]) -> None:
+    # Focal lengths twice or half the true ones, the principal point in a corner: no
+    # convention explains the boxes, and the right one is not refused.
+    for seed in range(10):
+        for turn in (0.0, 15.0):
+            for motion in ("ground", "forward", "free"):
+                s = make_scenes(20, motion, turn=turn, noise=True, rng=seed, oriented=True)
+                assert _judge(s, s.orientation, k) is None, (seed, turn, motion)
 
 
 @pytest.mark.parametrize("mistake", list(WRONG))
@@ -521,13 +534,18 @@ def test_a_convention_option_that_the_file_contradicts_is_refused_naming_it(tmp_
     assert "the components look written x, y, z, w: drop `--quaternion-order wxyz`" in r.stderr
 
 
-def test_the_convention_is_checked_without_intrinsics_by_the_sizes() -> None:
-    # A camera that does not turn (no intrinsics needed), in a fixed frame turned at random:
-    # the inverse puts the travel in the wrong axes, and the box sizes say so.
+def test_without_intrinsics_the_convention_is_said_to_be_unchecked() -> None:
+    # A camera that does not turn needs no intrinsics; the box sizes alone cannot tell the
+    # conventions apart on noisy data (measured: 2 false refusals in 60 right files), so the
+    # check needs --intrinsics, and its absence is warned of.
     s = make_scenes(12, "free", rng=13, oriented=True)
-    with pytest.raises(ValidationError, match="the quaternions look world-to-camera"):
-        _read(dataclasses.replace(s, orientation=WRONG["inverse"](s.orientation)), None)
-    np.testing.assert_allclose(_errors(_read(s, None), "box-ls"), 0.0, atol=1e-9)
+    seqs = _read(s, None)
+    assert any(
+        "convention (camera-to-world, x, y, z, w) is not checked without --intrinsics" in w
+        for w in seqs.warnings
+    )
+    np.testing.assert_allclose(_errors(seqs, "box-ls"), 0.0, atol=1e-9)
+    assert not any("not checked" in w for w in _read(s).warnings)
 
 
 def test_a_quaternion_far_from_unit_length_is_refused_even_where_its_square_overflows(tmp_path: Path) -> None:

@@ -37,6 +37,7 @@ no library fits a point and a size to bounding boxes under known poses.
 
 from __future__ import annotations
 
+import warnings
 from typing import Literal
 
 import numpy as np
@@ -58,6 +59,10 @@ FLOOR_PIXELS = 1.0
 #: Refused where another convention is clearly better in at least this share of the
 #: sequences that can tell the conventions apart.
 MIN_SHARE = 0.5
+#: ... and, to speak for it, explains a sequence's boxes to this share of their size (its
+#: residual at most this times the median box width and height): under wrong intrinsics
+#: no convention does, and the quaternions are not blamed.
+GOOD_SHARE = 0.1
 
 
 def check_choice(orientation: str, order: str) -> None:
@@ -151,8 +156,6 @@ def residuals(
         if intrinsics is not None:
             diff += [u - (cx + fx * pk[..., 0] / z), v - (cy + fy * pk[..., 1] / z)]
         sq = sum(np.where(seen, d * d, 0.0) for d in diff)
-        # An object behind the camera explains nothing: an infinite residual.
-        sq = np.where(seen & ~(z > 0), np.inf, sq)
         equations = len(diff) * seen.sum(axis=1)
         rms = np.sqrt(np.where(seen, sq, 0.0).sum(axis=1) / np.maximum(equations, 1))
     rms = np.where(np.isnan(rms), np.inf, rms)
@@ -174,7 +177,7 @@ def compare(
     intrinsics: tuple[float, float, float, float] | None,
     orientation: str,
     order: str,
-) -> tuple[np.ndarray, dict[tuple[str, str], np.ndarray]]:
+) -> tuple[np.ndarray, dict[tuple[str, str], np.ndarray], np.ndarray]:
     """The residuals under the convention given and under each other, per sequence.
 
     Args:
@@ -186,8 +189,9 @@ def compare(
         order: its component order, ``"xyzw"`` or ``"wxyz"``.
 
     Returns:
-        ``(given, others)``: (N,) residuals in the order of the groups concatenated, and
-        the same per other convention ``(orientation, order)``.
+        ``(given, others, sizes)``: (N,) residuals in the order of the groups
+        concatenated, the same per other convention ``(orientation, order)``, and (N,)
+        each sequence's median box width and height (pixels; NaN without a detection).
     """
 
     def run(o: str, k: str) -> np.ndarray:
@@ -200,45 +204,63 @@ def compare(
     for invert, swap in _ALTERNATIVES:
         o, k = _other(orientation, order, invert, swap)
         others[(o, k)] = run(o, k)
-    return given, others
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # (all-NaN: a sequence without a detection)
+        sizes = np.concatenate(
+            [
+                np.nanmedian(np.concatenate([c[..., 2] - c[..., 0], c[..., 3] - c[..., 1]], axis=1), axis=1)
+                for c, _, _ in groups
+            ]
+        )
+    return given, others, sizes
 
 
 def convention_problem(
     given: np.ndarray,
     others: dict[tuple[str, str], np.ndarray],
+    sizes: np.ndarray,
     orientation: str,
     order: str,
 ) -> str | None:
     """The refusal where another convention explains the boxes clearly better, or None.
 
+    A sequence tells the conventions apart where one fits :data:`RATIO` times better than
+    another; it speaks for another convention where that one fits :data:`RATIO` times
+    better than the one given and explains the boxes, to :data:`GOOD_SHARE` of their size
+    (so that intrinsics that are wrong, under which no convention fits, do not blame the
+    quaternions). Refused where one other convention is spoken for by at least
+    :data:`MIN_SHARE` of the sequences that tell.
+
     Args:
         given: (N,) residuals under the convention given (:func:`compare`).
         others: the same per other convention.
+        sizes: (N,) the sequences' box sizes, pixels.
         orientation: the convention given.
         order: the component order given.
     """
-    best_name: tuple[str, str] | None = None
-    best_count = 0
-    tell = np.zeros(given.shape, dtype=bool)
-    wins: dict[tuple[str, str], np.ndarray] = {}
-    for name, res in others.items():
-        both = np.isfinite(res) & ~np.isnan(given)
-        with np.errstate(invalid="ignore"):
-            better = both & (given > RATIO * np.maximum(res, FLOOR_PIXELS))
-            worse = both & (res > RATIO * np.maximum(given, FLOOR_PIXELS))
-        tell |= better | worse
-        wins[name] = better
-        if int(better.sum()) > best_count:
-            best_name, best_count = name, int(better.sum())
-    if best_name is None or best_count < MIN_SHARE * max(int(tell.sum()), 1):
+    names = list(others)
+    res = np.stack([np.where(np.isnan(others[k]), np.inf, others[k]) for k in names])
+    pick = np.argmin(res, axis=0)
+    best = res.min(axis=0)
+    worst = res.max(axis=0)
+    known = np.isfinite(given)
+    with np.errstate(invalid="ignore"):
+        better = known & (given > RATIO * np.maximum(best, FLOOR_PIXELS))
+        tell = better | (known & np.isfinite(worst) & (worst > RATIO * np.maximum(given, FLOOR_PIXELS)))
+        speaks = better & (best <= GOOD_SHARE * sizes)
+    if not speaks.any():
         return None
-    res = others[best_name]
-    med_given = float(np.median(np.where(np.isinf(given), 1e300, given)[wins[best_name]]))
-    med_other = float(np.median(res[wins[best_name]]))
-    o, k = best_name
+    votes = np.bincount(pick[speaks], minlength=len(names))
+    top = int(np.argmax(votes))
+    if votes[top] < MIN_SHARE * int(tell.sum()):
+        return None
+    chosen = speaks & (pick == top)
+    med_given = float(np.median(given[chosen]))
+    med_other = float(np.median(best[chosen]))
+    o, k = names[top]
     said = (
         f"the camera orientations disagree with the boxes as given ({orientation}, {', '.join(order)}): "
-        f"in {best_count} of {int(tell.sum())} sequences that can tell, the boxes fit a static object "
+        f"in {int(votes[top])} of {int(tell.sum())} sequences that can tell, the boxes fit a static object "
         f"with a median residual of {_px(med_given)} read so, and of {_px(med_other)} read as "
     )
     fixes = []
@@ -265,11 +287,12 @@ def convention_problem(
 
 
 def _px(v: float) -> str:
-    return "more than 1e6 pixels (an object behind the camera)" if v > 1e6 else f"{v:.3g} pixels"
+    return f"{v:.3g} pixels"
 
 
 __all__ = [
     "FLOOR_PIXELS",
+    "GOOD_SHARE",
     "MIN_SHARE",
     "ORDERS",
     "ORIENTATIONS",

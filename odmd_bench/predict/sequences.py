@@ -314,17 +314,26 @@ def read_sequences(
     takes = [
         order[starts[np.flatnonzero(counts == n)][:, None] + np.arange(n)] for n in np.unique(counts).tolist()
     ]
-    if rows.orientation is not None:
+    unchecked: tuple[str, ...] = ()
+    if rows.orientation is not None and k is not None:
         # The convention: the one given, unless the boxes refuse it (before any method runs).
-        given, others = compare(
+        given, others, sizes = compare(
             [(rows.numbers[t][:, :, 1:5], rows.numbers[t][:, :, 5:8], rows.orientation[t]) for t in takes],
             k,
             orientation,
             quaternion_order,
         )
-        wrong = convention_problem(given, others, orientation, quaternion_order)
+        wrong = convention_problem(given, others, sizes, orientation, quaternion_order)
         if wrong is not None:
             raise ValidationError(title, [wrong])
+    elif rows.orientation is not None and not (np.abs(rows.orientation[:, :3]) < 1e-12).all():
+        unchecked = (
+            f"the quaternions' convention ({orientation}, {', '.join(quaternion_order)}) is not checked "
+            "without --intrinsics (the box sizes alone cannot tell): a world-to-camera or w-first "
+            "quaternion would put the camera's travel in the wrong axes and every depth would be wrong "
+            "(docs/own-data.md, checks before any method runs)",
+        )
+    if rows.orientation is not None:
         rows.orientation = as_camera_to_world(rows.orientation, orientation, quaternion_order)
 
     attrs: dict[str, Any] = {"source_file": where}
@@ -385,7 +394,8 @@ def read_sequences(
         attrs=attrs,
         warnings=_outside_image(rows.numbers[:, 1:5], rows.lines, size)
         + _pose_like(ignored)
-        + _depth_like(ignored, "depth" in header),
+        + _depth_like(ignored, "depth" in header)
+        + unchecked,
         turn=turn,
         oriented=rows.orientation is not None,
     )
