@@ -19,7 +19,8 @@ the last one's, ``c_k`` its position there)::
 
 which is linear in ``(P, a, b)`` once multiplied by ``P_k,z``. :func:`residuals` solves
 it by least squares for every sequence and reports the root mean square reprojection
-residual of the box centres and sizes in pixels (sizes only without the intrinsics).
+residual of the box centres and sizes in pixels (sizes only without the intrinsics; the
+check is made only with them: on noisy scenes the sizes alone refused 2 of 60 right files).
 Under the right convention it is the detector's noise (and the few pixels by which a
 box's centre is not its object's under a turn); under a wrong one the motion and the
 boxes disagree, by tens to hundreds of pixels on the scenes of ``docs/own-data.md``.
