@@ -27,8 +27,9 @@ boxes disagree, by tens to hundreds of pixels on the scenes of ``docs/own-data.m
 
 :func:`convention_problem` compares the convention given with the three others
 (inverse, ``w`` first, both) and refuses where another explains the boxes clearly
-better (:data:`RATIO`, :data:`FLOOR_PIXELS`) in at least half of the sequences that
-can tell (:data:`MIN_SHARE`). The thresholds were chosen on the scenes of
+better (:data:`RATIO`, :data:`FLOOR_PIXELS`), and well (:data:`GOOD_SHARE`: wrong
+intrinsics, under which no convention fits, do not blame the quaternions), in at least
+half of the sequences that can tell (:data:`MIN_SHARE`). The thresholds were chosen on the scenes of
 :mod:`odmd_bench.predict.scenes`, noise included; ``tests/test_own_data.py``
 measures them (no refusal of a right file over many seeds, every wrong one refused).
 
