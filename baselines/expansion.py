@@ -57,6 +57,10 @@ import odmd_bench
 #: Depth (metres) where the width solution is not finite, as the original release uses.
 DEFAULT_FALLBACK_DEPTH = 1.0
 
+#: The method reads depth from the boxes' growth as the camera moves along its optical axis:
+#: ``odmd-bench predict`` gives no depth where it moved too little (``odmd_bench.predict``).
+NEEDS_FORWARD_MOTION = True
+
 #: Fallback reasons, in order of precedence.
 FALLBACKS: tuple[str, ...] = ("no_detection", "non_finite_w", "non_finite_h", "non_finite")
 

@@ -300,7 +300,7 @@ def test_a_third_party_method_runs_through_the_command_line(
     sizes = {name: len(ex) for name, ex in odmd_bench.load_split("val", "odmd-v1", v1_data_dir).items()}
     assert "  source a constant\n" in done.stdout  # the same on every set: said once
     for name, n in sizes.items():
-        assert f"  {name}: fallbacks: guessed {n}\n" in done.stdout
+        assert f"  {name}: fallbacks: none; counted: guessed {n}\n" in done.stdout  # (no FALLBACKS declared)
     with open(out, newline="") as fh:
         rows = list(csv.DictReader(fh))
     assert len(rows) == sum(sizes.values()) and {float(r["depth"]) for r in rows} == {2.0}

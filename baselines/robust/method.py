@@ -42,6 +42,9 @@ OPTIONS = (
     ),
 )
 
+#: The counts of :func:`predict_report` that are fallbacks (``odmd_bench.predict.report``).
+FALLBACKS: tuple[str, ...] = ("fit_failed", "too_few_detections")
+
 
 def predict(
     examples: Examples,

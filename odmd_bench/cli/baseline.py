@@ -108,6 +108,7 @@ def baseline(
     options = given_options(method, **method_values)
 
     from odmd_bench.predict.checks import method_warnings, scale_warnings
+    from odmd_bench.predict.report import report_line
 
     sets = load_split(split, benchmark, data_dir)
     depths: dict[str, np.ndarray] = {}
@@ -139,10 +140,8 @@ def baseline(
     common = {k: v for k, v in said[0].items() if all(d.get(k) == v for d in said)} if said else {}
     if common:
         say("  " + "; ".join(f"{k} {v}" for k, v in common.items()))
-    for (set_name, report), own in zip(reports.items(), said, strict=True):
-        used = [f"{k} {v}" for k, v in report.items() if isinstance(v, int) and k != "n" and v]
-        extra = "".join(f"; {k} {v}" for k, v in own.items() if k not in common)
-        say(f"  {set_name}: fallbacks: {', '.join(used) or 'none'}{extra}")
+    for set_name, report in reports.items():
+        say(f"  {set_name}: {report_line(method, report, skip=common)}")
     for line in warnings:
         click.echo(f"warning: {line}", err=True)
     hint = f"odmd-bench evaluate {'-' if to_stdout else path}"
