@@ -430,7 +430,9 @@ def test_a_plug_in_takes_its_declared_options_on_the_command_line(
     assert result.exit_code == 0, result.output
     with open(out, newline="") as fh:
         assert {float(r["depth"]) for r in csv.DictReader(fh)} == {3.0}
-    assert "  loud True\n" in result.output and "  normal: fallbacks: repeat 4\n" in result.output
+    assert (
+        "  loud True\n" in result.output and "  normal: fallbacks: none; counted: repeat 4\n" in result.output
+    )  # (no FALLBACKS declared)
     command = f"odmd-bench baseline declared --scale 1.5 --repeat 4 --loud true --benchmark odmd-v1 --split val -o {out}"
     assert f"  command: {command}\n" in result.output
     assert methods.parse_command(command) == (
