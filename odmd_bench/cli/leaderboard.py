@@ -169,9 +169,15 @@ def add_command(predictions: Path, root: Path | None, command_: str, **fields: A
 )
 @click.option("--no-plot", is_flag=True, help="Draw no figures (they need the [plot] extra, matplotlib).")
 @click.option(
+    "--no-croissant",
+    is_flag=True,
+    help="Write no Croissant descriptions into downloads/ (by default one per ranked benchmark, which "
+    "loads its val and test sets).",
+)
+@click.option(
     "--source-url",
     default=None,
-    help="Where repository paths link to, e.g. https://github.com/OWNER/odmd-bench/blob/main "
+    help="Where repository paths link to, e.g. https://github.com/odmd-bench/odmd-bench/blob/main "
     "[default: shown as text].",
 )
 @_root_option
@@ -180,6 +186,7 @@ def add_command(predictions: Path, root: Path | None, command_: str, **fields: A
 def site_command(
     output: Path,
     no_plot: bool,
+    no_croissant: bool,
     source_url: str | None,
     root: Path | None,
     data_dir: Path | None,
@@ -195,7 +202,12 @@ def site_command(
 
     folder = _root(root)
     files, said = build_site(
-        folder, data_dir, original, figures=False if no_plot else None, source_url=source_url
+        folder,
+        data_dir,
+        original,
+        figures=False if no_plot else None,
+        source_url=source_url,
+        croissant=not no_croissant,
     )
     write_site(files, output)
     for line in said:
