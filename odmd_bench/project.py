@@ -27,7 +27,7 @@ DISTRIBUTION = "odmd-bench"
 SITE, REPOSITORY, CARD = "Homepage", "Repository", "Card"
 
 #: The paper that introduced the benchmark (cite it for the benchmark itself).
-PAPER_BIBTEX = """@inproceedings{griffin2021depth,
+PAPER_BIBTEX = """@inproceedings{GrCoCVPR21,
   title     = {Depth from Camera Motion and Object Detection},
   author    = {Griffin, Brent A. and Corso, Jason J.},
   booktitle = {Proceedings of the IEEE/CVF Conference on Computer Vision and Pattern Recognition (CVPR)},
