@@ -114,3 +114,30 @@ def test_the_site_offers_each_ranked_benchmark_in_croissant(
     assert printed.exit_code == 0
     assert site["downloads/odmd-v1.croissant.json"].decode() == printed.stdout
     assert b'<a href="downloads/odmd-v1.croissant.json">' in site["index.html"]
+
+
+def test_addresses_unknown_to_the_install_are_a_usage_error(monkeypatch: pytest.MonkeyPatch) -> None:
+    from importlib import metadata
+
+    from odmd_bench import project
+    from odmd_bench.errors import UsageError
+
+    def missing(name: str) -> None:
+        raise metadata.PackageNotFoundError(name)
+
+    class Stale:
+        def get_all(self, key: str) -> list[str]:
+            return ["Homepage, https://example.org/"]
+
+    project.project_urls.cache_clear()
+    try:
+        monkeypatch.setattr(project.metadata, "metadata", missing)
+        with pytest.raises(UsageError, match="not installed"):
+            project.project_urls()
+        monkeypatch.setattr(project.metadata, "metadata", lambda name: Stale())
+        with pytest.raises(UsageError, match="no \\[project.urls\\] Repository, Card"):
+            project.repository_url()
+    finally:
+        monkeypatch.undo()
+        project.project_urls.cache_clear()
+    assert project.repository_url().startswith("https://")
