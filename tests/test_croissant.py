@@ -79,6 +79,9 @@ def test_mlcroissant_validates_each_description_and_every_file_is_as_described(
     ds = _dataset(path)
     doc = json.loads(path.read_text())
     assert doc["conformsTo"] == "http://mlcommons.org/croissant/1.0"
+    meta = ds.metadata  # the responsible-AI summary of the card, as mlcroissant reads it
+    assert meta.data_biases and meta.data_limitations and meta.personal_sensitive_information
+    assert "maintenance.md" in meta.data_release_maintenance_plan
     b = get_benchmark(benchmark)
     pins = read_manifest(benchmark)["splits"]
     files = {f["@id"]: f for f in doc["distribution"]}
