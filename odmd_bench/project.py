@@ -98,7 +98,7 @@ def software_bibtex(version: str = __version__) -> str:
 
 def citation_text(version: str = __version__) -> str:
     """One paragraph saying what to cite: the paper, and the package with its version."""
-    return f"{PAPER_TEXT}; and odmd-bench {version}, {repository_url()} (CITATION.cff)."
+    return f"{PAPER_TEXT}; and odmd-bench {version}, {repository_url()}."
 
 
 __all__ = [
