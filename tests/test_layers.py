@@ -19,6 +19,7 @@ PACKAGE = Path(__file__).resolve().parents[1] / "odmd_bench"
 LAYERS: dict[str, int] = {
     "errors": 0,
     "_version": 0,
+    "project": 1,
     "extras": 1,
     "documents": 1,
     "inputs": 1,

@@ -1,4 +1,4 @@
-"""``generate``, ``import`` and ``info``."""
+"""``generate``, ``import``, ``info`` and ``describe``."""
 
 from __future__ import annotations
 
@@ -117,10 +117,65 @@ def info(file: Path, as_json: bool, stats: bool) -> None:
                 click.echo(line)
 
 
+@click.command(name="describe")
+@click.argument("benchmark", type=click.Choice(list(BENCHMARKS)))
+@click.option(
+    "--format",
+    "fmt",
+    type=click.Choice(["text", "croissant"]),
+    default="text",
+    show_default=True,
+    help="text: the ranges of every split and set (as info --stats); croissant: a Croissant 1.0 "
+    "description (JSON-LD) of every split and set.",
+)
+@click.option(
+    "-o",
+    "--out",
+    type=click.Path(file_okay=False, path_type=Path),
+    default=None,
+    help="croissant: write DIR/BENCHMARK.croissant.json and the JSON file of every set it describes "
+    "(what mlcroissant loads) [default: print the description only].",
+)
+@data_dir_option
+def describe_cmd(benchmark: str, fmt: str, out: Path | None, data_dir: Path | None) -> None:
+    """Describe every split and set of BENCHMARK, each verified as it is loaded.
+
+    \b
+    odmd-bench describe odmd-v1                              ranges of depth and motion
+    odmd-bench describe --format croissant odmd-v1 -o DIR   for mlcroissant (docs/data.md)
+
+    A generated benchmark missing from the data folder is generated first; an imported
+    one must have been imported (odmd-bench import).
+    """
+    from odmd_bench.data.registry import get_benchmark
+    from odmd_bench.errors import UsageError
+
+    b = get_benchmark(benchmark)
+    if fmt == "text":
+        if out is not None:
+            raise UsageError("--out is for --format croissant; the text goes to standard output")
+        from odmd_bench.data.describe import describe, format_description
+        from odmd_bench.data.store import load_split
+
+        for split in b.splits:
+            for name, ex in load_split(split, b, data_dir).items():
+                for line in format_description(f"{split} {name}", describe(ex)):
+                    click.echo(line)
+        return
+    from odmd_bench.data.croissant import croissant_text, describe_benchmark, write_croissant
+
+    doc, files = describe_benchmark(b, data_dir)
+    if out is None:
+        click.echo(croissant_text(doc), nl=False)
+        return
+    for path in write_croissant(out, b, doc, files):
+        click.echo(str(path))
+
+
 @click.command(name="data-dir")
 def data_dir_cmd() -> None:
     """Print the data folder in use."""
     click.echo(str(resolve_data_dir(None)))
 
 
-COMMANDS: list[click.Command] = [generate, import_, info, data_dir_cmd]
+COMMANDS: list[click.Command] = [generate, import_, info, describe_cmd, data_dir_cmd]

@@ -1,4 +1,4 @@
-"""``leaderboard build``, ``check``, ``add``, ``site`` and ``audit``."""
+"""``leaderboard build``, ``check``, ``add``, ``site``, ``export`` and ``audit``."""
 
 from __future__ import annotations
 
@@ -169,9 +169,15 @@ def add_command(predictions: Path, root: Path | None, command_: str, **fields: A
 )
 @click.option("--no-plot", is_flag=True, help="Draw no figures (they need the [plot] extra, matplotlib).")
 @click.option(
+    "--no-croissant",
+    is_flag=True,
+    help="Write no Croissant descriptions into downloads/ (by default one per ranked benchmark, which "
+    "loads its val and test sets).",
+)
+@click.option(
     "--source-url",
     default=None,
-    help="Where repository paths link to, e.g. https://github.com/OWNER/odmd-bench/blob/main "
+    help="Where repository paths link to, e.g. https://github.com/odmd-bench/odmd-bench/blob/main "
     "[default: shown as text].",
 )
 @_root_option
@@ -180,6 +186,7 @@ def add_command(predictions: Path, root: Path | None, command_: str, **fields: A
 def site_command(
     output: Path,
     no_plot: bool,
+    no_croissant: bool,
     source_url: str | None,
     root: Path | None,
     data_dir: Path | None,
@@ -195,13 +202,64 @@ def site_command(
 
     folder = _root(root)
     files, said = build_site(
-        folder, data_dir, original, figures=False if no_plot else None, source_url=source_url
+        folder,
+        data_dir,
+        original,
+        figures=False if no_plot else None,
+        source_url=source_url,
+        croissant=not no_croissant,
     )
     write_site(files, output)
     for line in said:
         click.echo(line)
     pages = sum(1 for name in files if name.endswith(".html"))
     click.echo(f"wrote {output}: {len(files)} files, {pages} pages (open {output / 'index.html'})")
+
+
+@leaderboard.command("export")
+@click.option(
+    "--format",
+    "fmt",
+    required=True,
+    type=click.Choice(["hf-eval-results", "json"]),
+    help="hf-eval-results: Hugging Face's .eval_results YAML, a folder per method; json: results.json, "
+    "a record per entry with its provenance (re-scored here, or reported in a paper).",
+)
+@click.option(
+    "-o",
+    "--output",
+    required=True,
+    type=click.Path(path_type=Path),
+    help="The folder to write into (files of the same names are replaced).",
+)
+@click.option(
+    "--hf-dataset",
+    default=None,
+    help="hf-eval-results: the Hub dataset id the results name [default: odmd-bench/odmd].",
+)
+@_root_option
+@_data_option
+@_original_option
+def export_command(
+    fmt: str,
+    output: Path,
+    hf_dataset: str | None,
+    root: Path | None,
+    data_dir: Path | None,
+    original: Path | None,
+) -> None:
+    """Write the board in an exchange format other leaderboards read (docs/format.md).
+
+    Every entry is re-scored first, as by `leaderboard build` (a problem stops it); the
+    numbers are leaderboard.json's.
+    """
+    from odmd_bench.leaderboard import build
+    from odmd_bench.leaderboard.export import HF_DATASET, export_files, write_export
+
+    built = build(_root(root), data_dir, original, progress=lambda line: click.echo(line, err=True))
+    files = export_files(built, fmt, hf_dataset=hf_dataset or HF_DATASET)
+    for path in write_export(files, output):
+        click.echo(str(path))
 
 
 @leaderboard.command("audit")

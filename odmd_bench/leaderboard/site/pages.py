@@ -14,7 +14,7 @@ import hashlib
 import importlib.resources
 import io
 import json
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from html import escape
 from string import Template
@@ -559,22 +559,43 @@ def _speed_section(site: SiteData, figures: bool, files: dict[str, bytes]) -> st
 # ----------------------------------------------------------------------------- the whole site
 
 
+def _cite() -> dict[str, str]:
+    """The footer's citation and addresses (odmd_bench.project: configured in pyproject.toml)."""
+    from odmd_bench.project import card_url, citation_text, repository_url
+
+    repo = repository_url()
+    return {
+        "citation": _e(citation_text()),
+        "repository": _e(repo),
+        "card": _e(card_url()),
+        "maintenance": _e(f"{repo}/blob/main/docs/maintenance.md"),
+    }
+
+
 def _page(title: str, body: str, base: str, digest: str) -> bytes:
     return (
         template("page.html")
-        .substitute(title=_e(title), body=body, base=base, version=_e(__version__), digest=digest)
+        .substitute(title=_e(title), body=body, base=base, version=_e(__version__), digest=digest, **_cite())
         .encode("utf-8")
     )
 
 
-def render_site(site: SiteData, *, figures: bool, source_url: str | None = None) -> dict[str, bytes]:
+def render_site(
+    site: SiteData,
+    *,
+    figures: bool,
+    source_url: str | None = None,
+    extra_downloads: Mapping[str, tuple[bytes, str]] | None = None,
+) -> dict[str, bytes]:
     """Every file of the site, ``{relative path: bytes}``, sorted by path.
 
     Args:
         site: the board and its re-scored entries (:func:`~odmd_bench.leaderboard.site.data.load_site_data`).
         figures: draw the figures (needs matplotlib).
         source_url: where repository paths (an entry's ``code``) link to, e.g.
-            ``https://github.com/OWNER/odmd-bench/blob/COMMIT``; without it they are shown as text.
+            ``https://github.com/odmd-bench/odmd-bench/blob/COMMIT``; without it they are shown as text.
+        extra_downloads: further files for ``downloads/``, ``{file name: (bytes, what it is)}``
+            (the Croissant descriptions of ``leaderboard site``), each listed with the others.
     """
     digest = board_digest(site.json_text)
     files: dict[str, bytes] = {
@@ -591,6 +612,9 @@ def render_site(site: SiteData, *, figures: bool, source_url: str | None = None)
             downloads.append(
                 f'<li><a href="downloads/{b.id}.csv">{b.id}.csv</a>: the {_e(b.spec.key)} table</li>'
             )
+    for name, (data, what) in (extra_downloads or {}).items():
+        files[f"downloads/{name}"] = data
+        downloads.append(f'<li><a href="downloads/{_e(name)}">{_e(name)}</a>: {_e(what)}</li>')
     downloads.append('<li><a href="reported.html">Results reported in papers</a> (not re-scored)</li>')
     methods: dict[str, list[tuple[SiteRow, SiteBoard]]] = {}
     for b in site.boards:
