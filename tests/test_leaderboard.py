@@ -6,6 +6,7 @@ import gzip
 import json
 import os
 import shutil
+import subprocess
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -457,6 +458,14 @@ def test_build_without_matplotlib_says_so(
     said = lb.write(board, lb.build(board, v1_data_dir, n_resamples=FAST))
     assert any("skipped the plot" in s and "odmd-bench[plot]" in s for s in said)
     assert not (board / lb.PLOT).exists()
+    # The core install runs add, build and check: the plot is not part of any gate.
+    monkeypatch.setattr(ranking, "RANK_RESAMPLES", FAST)
+    common = ["--root", str(board), "--data-dir", str(v1_data_dir)]
+    built = CliRunner().invoke(cli, ["leaderboard", "build", *common])
+    assert built.exit_code == 0 and "skipped the plot" in built.output
+    checked = CliRunner().invoke(cli, ["leaderboard", "check", *common])
+    assert checked.exit_code == 0, checked.output
+    assert "matplotlib" not in sys.modules or sys.modules["matplotlib"] is None
 
 
 def test_a_plot_records_its_board_and_a_stale_one_is_not_left_beside_a_build_without_it(
@@ -856,3 +865,126 @@ def test_check_reads_predictions_exactly_as_evaluate_does(board: Path, v1_data_d
         "entry box-ls/odmd-v1-test: predictions.csv.gz fails validation"
     )
     assert by_evaluate.value.problems[0] in problems[0]
+
+
+# ----------------------------------------------------------------------------- plug-ins, options, speed
+
+
+def test_add_keeps_a_plugins_plain_source_in_the_entry(
+    board: Path, v1_data_dir: Path, v1_preds: dict[str, Path], tmp_path: Path
+) -> None:
+    source = tmp_path / "src"
+    (source / "mine").mkdir(parents=True)
+    (source / "mine" / "__init__.py").write_text("")
+    (source / "mine" / "depth.py").write_text("def predict(examples):\n    return None\n")
+    (source / "mine" / "__pycache__").mkdir()
+    (source / "mine" / "__pycache__" / "depth.cpython-311.pyc").write_bytes(b"\0")  # a cache: left out
+    (source / ".git").mkdir()
+    (source / ".git" / "HEAD").write_text("ref")  # hidden: left out
+    nudged = _nudged(v1_preds["expansion"], tmp_path)
+    entry = _add(board, v1_data_dir, nudged, "mine", plugin_source=source, plugin_module="mine.depth")
+    assert entry.meta.plugin == {"source": "plugin", "module": "mine.depth"}
+    kept = sorted(p.relative_to(entry.folder).as_posix() for p in entry.folder.rglob("*") if p.is_file())
+    assert kept == ["entry.yaml", "plugin/mine/__init__.py", "plugin/mine/depth.py", "predictions.csv.gz"]
+    assert _check(board, v1_data_dir) == []
+    # a link or another kind of file is refused before anything is written
+    (source / "mine" / "weights.bin").write_bytes(b"\0")
+    (source / "mine" / "link.py").symlink_to(source / "mine" / "depth.py")
+    with pytest.raises(ValidationError) as info:
+        _add(
+            board, v1_data_dir, nudged, "mine", plugin_source=source, plugin_module="mine.depth", replace=True
+        )
+    assert info.value.problems == [
+        "mine/link.py is a symbolic link; copy the file itself",
+        "mine/weights.bin is not a .py file; a plug-in's source is plain Python files only",
+    ]
+    assert (entry.folder / "plugin" / "mine" / "depth.py").is_file()  # the entry as it was
+    # the source's module must be in it
+    (source / "mine" / "weights.bin").unlink()
+    (source / "mine" / "link.py").unlink()
+    with pytest.raises(ValidationError, match="has no module mine.other"):
+        _add(
+            board, v1_data_dir, nudged, "mine", plugin_source=source, plugin_module="mine.other", replace=True
+        )
+    # a pinned requirement instead: the old source folder goes with the replaced entry
+    entry = _add(board, v1_data_dir, nudged, "mine", requirement="mine-depth==2.0", replace=True)
+    assert entry.meta.plugin == {"requirement": "mine-depth==2.0"} and not (entry.folder / "plugin").exists()
+    with pytest.raises(ValidationError, match="must be pinned as NAME==VERSION"):
+        _add(board, v1_data_dir, nudged, "mine", requirement="mine-depth>=2", replace=True)
+
+
+def test_add_records_the_options_and_derives_the_command(
+    board: Path, v1_data_dir: Path, v1_preds: dict[str, Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from odmd_bench.leaderboard.add import parse_options
+
+    options = parse_options(["fill=all", "fallback-depth=2.5", "combine=lsq"])
+    assert options == {"fill": "all", "fallback_depth": 2.5, "combine": "lsq"}
+    with pytest.raises(ValidationError) as info:
+        parse_options(["fill", "a=1", "a=2", "Bad=x"])
+    assert info.value.problems == [
+        "option 'fill' is not NAME=VALUE",
+        "option 'a' is given twice",
+        "options: name 'Bad' must be lowercase letters, digits and '_' (the method's keyword)",
+    ]
+    nudged = _nudged(v1_preds["expansion"], tmp_path)
+    entry = _add(board, v1_data_dir, nudged, "exp-lsq", command=None, baseline="expansion", options=options)
+    assert entry.meta.options == options
+    assert entry.meta.command == (
+        "odmd-bench baseline expansion --fill all --fallback-depth 2.5 --combine lsq "
+        "--benchmark odmd-v1 --split test -o predictions.csv"
+    )
+    with pytest.raises(
+        ValidationError, match="give either the command that made the predictions or the baseline"
+    ):
+        _add(board, v1_data_dir, nudged, "exp-2", baseline="expansion")  # and the helper's command
+    monkeypatch.setattr(ranking, "RANK_RESAMPLES", FAST)
+    both = CliRunner().invoke(
+        cli, ["leaderboard", "add", str(nudged), "--command", "x", "--baseline", "y", "--method", "z"]
+    )
+    assert both.exit_code == 2
+
+
+def test_speed_is_measured_on_one_thread_and_recorded_by_add(
+    board: Path, v1_data_dir: Path, v1_preds: dict[str, Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from odmd_bench.leaderboard import speed
+
+    out = tmp_path / "speed.json"
+    args = ["leaderboard", "speed", "box-ls", "--benchmark", "odmd-v1", "--data-dir", str(v1_data_dir)]
+    # Without the thread variables the command runs itself again with them (a child process).
+    env = {k: v for k, v in os.environ.items() if k not in speed.THREAD_VARIABLES}
+    done = subprocess.run(
+        [sys.executable, "-m", "odmd_bench", *args, "-o", str(out)], env=env, capture_output=True, text=True
+    )
+    assert done.returncode == 0, done.stderr
+    measured = json.loads(out.read_text())
+    assert set(measured) == {"examples_per_second", "device", "command"}
+    assert measured["device"] == speed.cpu_model() and measured["examples_per_second"] > 1000
+    assert measured["command"] == "odmd-bench leaderboard speed box-ls --benchmark odmd-v1 --split test"
+    assert f"examples_per_second: {measured['examples_per_second']}" in done.stdout
+    assert speed.read_speed(out) == measured
+    # add records it as the entry's speed
+    entry = _add(board, v1_data_dir, v1_preds["box_ls"], "box-ls", replace=True, speed=measured, parameters=0)
+    assert entry.meta.speed == measured and entry.meta.parameters == 0
+    # a file that is not a speed is named as such
+    out.write_text(json.dumps({"examples_per_second": -1, "device": "x"}))
+    with pytest.raises(ValidationError) as info:
+        speed.read_speed(out)
+    assert info.value.problems == [
+        "speed: missing field 'command': the command that measured it (one line, at most 500 characters)",
+        "speed: examples_per_second must be a number > 0, got '-1'",
+    ]
+    assert [speed.rounded_rate(x) for x in (837123.4, 658.49, 12.345)] == [837000, 658, 12.3]
+
+
+def test_speed_refuses_an_option_the_method_does_not_take(
+    v1_data_dir: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from odmd_bench.leaderboard import speed
+
+    for v in speed.THREAD_VARIABLES:
+        monkeypatch.setenv(v, "1")
+    args = ["leaderboard", "speed", "box-ls", "--benchmark", "odmd-v1", "--option", "weights=x.pt"]
+    result = CliRunner().invoke(cli, [*args, "--data-dir", str(v1_data_dir)])
+    assert result.exit_code == 2 and "method 'box-ls' takes no option weights" in result.output
