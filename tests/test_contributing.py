@@ -31,6 +31,7 @@ from conftest import original_dir
 
 from odmd_bench import leaderboard as lb
 from odmd_bench.cli.main import cli
+from odmd_bench.leaderboard.site import build_site
 from odmd_bench.leaderboard.speed import THREAD_VARIABLES
 
 REPO = Path(__file__).resolve().parents[1]
@@ -197,6 +198,11 @@ def test_contributing_walked_as_a_contributor_passes_the_gates_without_the_plugi
     assert "my-depth" not in CliRunner().invoke(cli, ["baseline", "--list"]).output
     check = CliRunner().invoke(cli, ["leaderboard", "check", "--original", str(original)])
     assert check.exit_code == 0, check.output
+    # The site shows the entry, and how to get its plug-in before its command.
+    files, _ = build_site(tree / "leaderboard", figures=False, n_resamples=200)
+    page = files["methods/my-depth.html"].decode()
+    assert "pip install my-depth==0.1.0\nodmd-bench baseline my-depth --benchmark odmd-v1" in page
+    assert "<dt>Selected on</dt><dd>nothing</dd>" in page and "<dt>Test labels used</dt><dd>no</dd>" in page
     data = os.environ["ODMD_BENCH_DATA"]
     tests = [
         "tests/test_leaderboard.py",

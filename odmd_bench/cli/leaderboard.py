@@ -313,11 +313,15 @@ def speed_command(
 
     from odmd_bench.data.atomic import atomic_write
     from odmd_bench.leaderboard.add import parse_options
-    from odmd_bench.leaderboard.speed import THREAD_VARIABLES, measure, one_thread, rerun_argv, speed_text
+    from odmd_bench.leaderboard.speed import THREAD_VARIABLES, measure, one_thread, speed_text
 
-    if not one_thread():
+    if not one_thread():  # BLAS reads them once, at start: run again with them set
+        argv = ["leaderboard", "speed", name, "--benchmark", benchmark, "--split", split]
+        argv += [a for pair in option_pairs for a in ("--option", pair)]
+        given = (("-o", output), ("--data-dir", data_dir), ("--original", original))
+        argv += [a for flag, value in given if value is not None for a in (flag, str(value))]
         env = {**os.environ, **dict.fromkeys(THREAD_VARIABLES, "1")}
-        done = subprocess.run(rerun_argv(sys.orig_argv), env=env, check=False)
+        done = subprocess.run([sys.executable, "-m", "odmd_bench", *argv], env=env, check=False)
         click.get_current_context().exit(done.returncode)
     options = parse_options(option_pairs)
     speed = measure(name, options, benchmark, split, data_dir=data_dir, original=original)
@@ -360,9 +364,9 @@ def site_command(
 ) -> None:
     """Write the leaderboard as a static web site: index, a page per method, downloads.
 
-    Built from the committed leaderboard.json, each entry re-scored beside it (a number
-    that differs stops it: run `leaderboard build` first). Serve the folder with any web
-    server, e.g. python -m http.server -d DIR.
+    Built from the entries, as `leaderboard build` builds the board (an entry whose
+    recorded SHA-256 or scores differ from its re-scoring stops it, as `check` fails).
+    Serve the folder with any web server, e.g. python -m http.server -d DIR.
     """
     from odmd_bench.leaderboard.site import build_site, write_site
 

@@ -21,7 +21,7 @@ import os
 import platform
 import sys
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -186,11 +186,6 @@ def read_speed(path: str | os.PathLike[str]) -> dict[str, Any]:
     return data
 
 
-def rerun_argv(argv: Sequence[str]) -> list[str]:
-    """The command line that runs this process again (``python [-m odmd_bench | SCRIPT] ARGS``)."""
-    return [sys.executable, *argv[1:]]
-
-
 def speed_text(speed: Mapping[str, Any]) -> str:
     """The speed as the lines of an entry's ``speed`` (YAML)."""
     return "speed:\n" + "".join(
@@ -209,7 +204,6 @@ __all__ = [
     "measure",
     "one_thread",
     "read_speed",
-    "rerun_argv",
     "rounded_rate",
     "speed_text",
 ]

@@ -3,10 +3,10 @@
 The board is built from the committed entries as ``leaderboard build`` builds it (the
 views are not committed), and every number printed comes from its ``leaderboard.json``.
 An entry whose recorded SHA-256 or scores differ from its re-scoring (what ``leaderboard
-check`` fails on) stops the site. The entries are re-scored here too, by the evaluator,
-because the method pages need the per-example errors (the figures, the paired
-comparisons); a re-scored statistic that differs from the JSON, or an entry missing from
-it, stops the site: it never shows numbers the board does not hold.
+check`` fails on) stops the site. The method pages use the entries' re-scored results
+(the per-example errors: the figures, the paired comparisons); a statistic that differs
+from the JSON, or an entry missing from it, stops the site: it never shows numbers the
+board does not hold.
 """
 
 from __future__ import annotations
