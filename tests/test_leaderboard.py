@@ -906,6 +906,17 @@ def test_add_keeps_a_plugins_plain_source_in_the_entry(
         _add(
             board, v1_data_dir, nudged, "mine", plugin_source=source, plugin_module="mine.other", replace=True
         )
+    # replaced by a source with fewer files: what the new source lacks goes
+    (source / "mine" / "__init__.py").unlink()
+    entry = _add(
+        board, v1_data_dir, nudged, "mine", plugin_source=source, plugin_module="mine.depth", replace=True
+    )
+    assert sorted(
+        p.relative_to(entry.folder / "plugin").as_posix() for p in (entry.folder / "plugin").rglob("*")
+    ) == [
+        "mine",
+        "mine/depth.py",
+    ]
     # a pinned requirement instead: the old source folder goes with the replaced entry
     entry = _add(board, v1_data_dir, nudged, "mine", requirement="mine-depth==2.0", replace=True)
     assert entry.meta.plugin == {"requirement": "mine-depth==2.0"} and not (entry.folder / "plugin").exists()

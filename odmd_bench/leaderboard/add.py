@@ -9,7 +9,6 @@ import io
 import os
 import re
 import shlex
-import shutil
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
@@ -312,15 +311,30 @@ def add_entry(
             raise ValidationError(title, [misfit])
         folder.mkdir(parents=True, exist_ok=True)
         names = sorted(p.relative_to(staged).as_posix() for p in staged.rglob("*") if p.is_file())
-        old_plugin = folder / PLUGIN_FOLDER
-        if old_plugin.is_dir() and not old_plugin.is_symlink():
-            shutil.rmtree(old_plugin)  # replaced by the staged copy (or gone with it)
         for f in names:
             (folder / f).parent.mkdir(parents=True, exist_ok=True)
         with atomic_paths([folder / f for f in names]) as temps:  # all replaced, or none
             for f, part in zip(names, temps, strict=True):
                 part.write_bytes((staged / f).read_bytes())
+        _drop_old_plugin_files(folder, set(names))
     return read_entry(folder, root.parent)
+
+
+def _drop_old_plugin_files(folder: Path, kept: set[str]) -> None:
+    """Remove what a replaced entry's plug-in source held and the new entry does not (after it is written)."""
+    old = folder / PLUGIN_FOLDER
+    if not old.is_dir() or old.is_symlink():
+        return
+    for path in sorted(old.rglob("*"), reverse=True):  # files before their folders
+        if path.relative_to(folder).as_posix() in kept:
+            continue
+        if path.is_dir() and not path.is_symlink():
+            if not any(path.iterdir()):
+                path.rmdir()
+        else:
+            path.unlink()
+    if not any(old.iterdir()):
+        old.rmdir()
 
 
 def _fits_the_twin(
