@@ -188,7 +188,20 @@ def test_options_reach_only_the_methods_whose_functions_take_them() -> None:
     assert len(e.value.problems) == 2  # every refused option named at once
 
 
-def test_an_unknown_method_lists_the_registered_ones() -> None:
+@pytest.fixture
+def own_methods_only(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Only this package's methods are registered, whatever plug-ins the environment has.
+
+    The suite must not depend on which third-party plug-ins are installed (one named like
+    ``median`` would change the "did you mean" below).
+    """
+    from importlib import metadata
+
+    own = [ep for ep in metadata.distribution("odmd-bench").entry_points if ep.group == methods.GROUP]
+    monkeypatch.setattr(methods, "_entry_points", lambda: own)
+
+
+def test_an_unknown_method_lists_the_registered_ones(own_methods_only: None) -> None:
     with pytest.raises(UsageError, match="no method 'median' is registered") as e:
         methods.load("median")
     assert "box-ls" in str(e.value) and "robust" in str(e.value) and "did you mean" not in str(e.value)

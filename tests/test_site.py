@@ -27,6 +27,7 @@ from typing import Any
 from urllib.parse import parse_qs, urlsplit
 
 import pytest
+import yaml
 from click.testing import CliRunner
 from conftest import add_entry
 
@@ -158,8 +159,9 @@ def site(committed_data_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> 
 
 
 @pytest.fixture(scope="module")
-def board_json() -> dict[str, Any]:
-    return json.loads((REPO / "leaderboard" / lb.JSON_FILE).read_text(encoding="utf-8"))
+def board_json(site: Path) -> dict[str, Any]:
+    """The board the site was built from (the views are not committed: the site builds it)."""
+    return json.loads((site / "downloads" / lb.JSON_FILE).read_text(encoding="utf-8"))
 
 
 def _pages(site: Path) -> list[Path]:
@@ -237,9 +239,15 @@ def test_every_link_resolves_to_a_file_of_the_site_and_nothing_is_loaded_from_el
 
 
 def test_the_downloads_are_the_board(site: Path, board_json: dict[str, Any]) -> None:
-    assert (site / "downloads" / "leaderboard.json").read_bytes() == (
-        REPO / "leaderboard" / lb.JSON_FILE
-    ).read_bytes()
+    # The board is built from the entries: every row's numbers are the scores its entry records.
+    rows = 0
+    for board in board_json["boards"]:
+        for row in board["rows"]:
+            entry = yaml.safe_load((REPO / "leaderboard" / row["entry"] / "entry.yaml").read_text())
+            shown = {s: m["percent_error"]["mean"] for s, m in row["sets"].items()} | {"all": row["all"]}
+            assert shown == entry["scores"] and row["predictions_csv_sha256"] == entry["predictions_sha256"]
+            rows += 1
+    assert rows == len(list((REPO / "leaderboard" / lb.ENTRIES).glob("*/*/entry.yaml")))
     import csv
 
     for board in board_json["boards"]:
@@ -366,13 +374,14 @@ def test_a_board_that_differs_from_its_entries_builds_no_site(
 ) -> None:
     root = tmp_path / "leaderboard"
     shutil.copytree(small_board, root)
-    path = root / lb.JSON_FILE
-    data = json.loads(path.read_text())
-    data["boards"][1]["rows"][0]["sets"]["camera"]["percent_error"]["mean"] += 0.01
-    path.write_text(json.dumps(data, indent=2) + "\n")
+    path = root / lb.ENTRIES / "box-ls" / "odmd-v1-test" / "entry.yaml"
+    meta = yaml.safe_load(path.read_text())
+    meta["scores"]["camera"] += 0.01
+    path.write_text(yaml.safe_dump(meta, sort_keys=False))
     with pytest.raises(ValidationError) as e:
         build_site(root, v1_data_dir, figures=False, n_resamples=FAST)
-    assert "differs from leaderboard.json in sets.camera.percent_error.mean" in "\n".join(e.value.problems)
+    assert "leaderboard check fails" in e.value.message
+    assert "entries/box-ls/odmd-v1-test/entry.yaml: scores.camera: recorded" in "\n".join(e.value.problems)
 
 
 def test_cli_site_writes_replaces_and_refuses_a_folder_of_other_files(
@@ -430,14 +439,33 @@ def test_an_extra_field_of_the_board_is_a_column_and_a_line_of_the_method_page(
     assert "<dt>Rows scored</dt>" in page and "Rows scored" not in plain["methods/box-ls.html"].decode()
 
 
-def test_facets() -> None:
-    base = {"calibrated": False, "command": "odmd-bench baseline dbox", "description": "d"}
-    assert facets({**base, "training_data": "none"})["training"] == "none"
-    assert facets({**base, "training_data": "ODMD generator v1, 100K steps"})["training"] == "generator"
-    assert facets({**base, "training_data": "KITTI"})["training"] == "other"
-    per_set = {**base, "training_data": "x", "command": "odmd-bench baseline dbox --selection per-set"}
+def test_facets_are_what_the_entry_declares() -> None:
+    base = {"calibrated": False, "training_data": "none (said in words)", "selected_on": "val"}
+    for kind in ("none", "generator", "real", "other"):
+        assert facets({**base, "training_kind": kind})["training"] == kind
+    assert facets({**base, "training_kind": "real", "selected_on": "nothing"})["selected_on"] == "nothing"
+    # per-set selection is an option the entry records, not a guess from its text
+    per_set = {**base, "training_kind": "x", "options": {"config": "p-z", "selection": "per-set"}}
     assert facets(per_set)["selection"] == "per-set"
-    assert facets({**base, "training_data": "x"})["selection"] == "overall"
+    words = {**base, "training_kind": "x", "command": "odmd-bench baseline dbox --selection per-set"}
+    assert facets(words)["selection"] == "overall"
+
+
+def test_the_method_page_shows_the_honesty_fields_and_how_to_get_a_plugin(site: Path) -> None:
+    page = (site / "methods" / "dbox-p-z-per-set.html").read_text()
+    assert "<dt>Selected on</dt><dd>val</dd>" in page and "<dt>Test labels used</dt><dd>no</dd>" in page
+    assert "(kind: generator)" in page
+    from odmd_bench.leaderboard.site.pages import reproduce
+
+    meta = {"command": "odmd-bench baseline mine -o p.csv", "plugin": {"requirement": "mine==1.2"}}
+    assert (
+        reproduce(meta, "entries/mine/odmd-v1-test")
+        == "pip install mine==1.2\nodmd-bench baseline mine -o p.csv"
+    )
+    meta["plugin"] = {"source": "plugin", "module": "mine.depth"}
+    assert reproduce(meta, "entries/mine/odmd-v1-test").splitlines()[0] == (
+        "# the plug-in's source: leaderboard/entries/mine/odmd-v1-test/plugin/ (module mine.depth)"
+    )
 
 
 def test_pareto_front() -> None:
@@ -529,7 +557,7 @@ def test_browser_a_filtered_view_shows_only_its_rows(
     browser: tuple[Any, str], board_json: dict[str, Any]
 ) -> None:
     page, base = browser
-    page.goto(f"{base}index.html?training=generator&selection=overall&sort=method&order=asc")
+    page.goto(f"{base}index.html?training=generator&selected_on=val&selection=overall&sort=method&order=asc")
     for board in board_json["boards"]:
         bid = f"{board['benchmark']}-{board['split']}"
         keep = [
@@ -537,6 +565,7 @@ def test_browser_a_filtered_view_shows_only_its_rows(
             for r in board["rows"]
             if facets(r["metadata"]) | {}
             and facets(r["metadata"])["training"] == "generator"
+            and facets(r["metadata"])["selected_on"] == "val"
             and facets(r["metadata"])["selection"] == "overall"
         ]
         expected = [r["method"] for r in sorted(keep, key=lambda r: (r["name"].lower(), r["position"]))]

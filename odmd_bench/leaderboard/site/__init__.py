@@ -1,6 +1,7 @@
 """The leaderboard as a static web site (``odmd-bench leaderboard site -o DIR``).
 
-The site, every file written from the committed board (nothing is fetched from elsewhere)::
+The site, every file written from the board built from the committed entries (nothing is
+fetched from elsewhere)::
 
     index.html                 a table per board (<table data-board="BENCHMARK-SPLIT">, a
                                <tr data-method="METHOD"> per entry); sorting and filtering by
@@ -13,8 +14,8 @@ The site, every file written from the committed board (nothing is fetched from e
     figures/                   error against depth per entry, accuracy against speed ([plot] extra)
     assets/site.css, site.js   the templates' companions (templates: site/templates/)
 
-Layers: :mod:`~odmd_bench.leaderboard.site.data` reads ``leaderboard.json`` and re-scores
-the entries beside it; :mod:`~odmd_bench.leaderboard.site.pages` renders the files
+Layers: :mod:`~odmd_bench.leaderboard.site.data` builds ``leaderboard.json`` from the
+entries, each re-scored; :mod:`~odmd_bench.leaderboard.site.pages` renders the files
 (numbers by :func:`~odmd_bench.leaderboard.render.format_number`, as ``LEADERBOARD.md``);
 :mod:`~odmd_bench.leaderboard.site.figures` draws. Nothing but the CLI imports this package.
 Two builds of one board give byte-identical files.

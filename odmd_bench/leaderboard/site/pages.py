@@ -276,7 +276,7 @@ def _controls(site: SiteData) -> dict[str, str]:
         for c in _columns(b):
             keys.setdefault(c.key, c.title)
     facet = "".join(
-        f'<label>{name.capitalize()} <select name="{name}"><option value="">any</option>'
+        f'<label>{name.replace("_", " ").capitalize()} <select name="{name}"><option value="">any</option>'
         + "".join(f'<option value="{v}">{v}</option>' for v in values)
         + "</select></label>\n"
         for name, values in FACETS.items()
@@ -347,7 +347,9 @@ def _facts(r: SiteRow, name: str) -> str:
     items = [("Name here", _e(meta["name"]))] if meta["name"] != name else []
     calibrated = r.facets["calibrated"]
     items += [
-        ("Training data", _e(meta["training_data"])),
+        ("Training data", f"{_e(meta['training_data'])} (kind: {_e(r.facets['training'])})"),
+        ("Selected on", _e(r.facets["selected_on"])),
+        ("Test labels used", "yes" if meta.get("uses_test_labels") else "no"),
         ("Selection", r.facets["selection"]),
         ("Calibrated", calibrated + (" (uses the camera intrinsics)" if calibrated == "yes" else "")),
         ("Input", r.facets["input"]),
@@ -379,6 +381,19 @@ def _facts(r: SiteRow, name: str) -> str:
     if r.data["warnings"]:
         items.append(("Warnings", "<br>".join(_e(w) for w in r.data["warnings"])))
     return '<dl class="facts">' + "".join(f"<dt>{k}</dt><dd>{v}</dd>" for k, v in items) + "</dl>"
+
+
+def reproduce(meta: dict[str, Any], entry: str) -> str:
+    """The Reproduce commands of an entry: how to get its plug-in (where it records one), then its command."""
+    plugin = meta.get("plugin") or {}
+    lines = []
+    if "requirement" in plugin:
+        lines.append(f"pip install {plugin['requirement']}")
+    elif "source" in plugin:
+        lines.append(
+            f"# the plug-in's source: leaderboard/{entry}/{plugin['source']}/ (module {plugin['module']})"
+        )
+    return "\n".join([*lines, str(meta["command"])])
 
 
 def predictions_path(r: SiteRow) -> str:
@@ -425,7 +440,7 @@ SHA-256 of the file <code class="hash">{hashlib.sha256(files[pred]).hexdigest()}
 leaderboard.json records it, <code class="hash">{_e(r.data["predictions_csv_sha256"])}</code>).
 In the repository: <code>leaderboard/{_e(r.data["entry"])}/</code>.</p>
 <h3>Reproduce</h3>
-<pre><code id="{cmd}">{_e(meta["command"])}</code></pre>
+<pre><code id="{cmd}">{_e(reproduce(meta, r.data["entry"]))}</code></pre>
 <button type="button" class="copy" data-for="{cmd}" hidden>Copy the command</button>
 <h3>Paired comparisons</h3>
 {_versus_table(r, n)}

@@ -3,7 +3,7 @@
 (function () {
   "use strict";
   document.documentElement.classList.add("js");
-  var FACETS = ["calibrated", "input", "training", "selection"];
+  var FACETS = ["calibrated", "input", "training", "selected_on", "selection"];
   var form = document.getElementById("controls");
   var tables = Array.prototype.slice.call(document.querySelectorAll("table[data-board]"));
   document.querySelectorAll("button.copy").forEach(function (b) {
