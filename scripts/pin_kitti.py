@@ -54,7 +54,12 @@ def main(argv: list[str] | None = None) -> int:
             }
         manifest["splits"][split] = entries
         if not args.check:
-            write_sets(ROOT / "splits" / rel, by_set, file_attrs={"benchmark": BENCHMARK, "split": split}, compress=True)
+            write_sets(
+                ROOT / "splits" / rel,
+                by_set,
+                file_attrs={"benchmark": BENCHMARK, "split": split},
+                compress=True,
+            )
         print(split, {k: len(v) for k, v in by_set.items()}, counts[split])
     path = ROOT / "splits" / f"{BENCHMARK}.json"
     text = json.dumps(manifest, indent=2) + "\n"

@@ -109,10 +109,10 @@ def import_(
             progress=lambda m: click.echo(f"warning: {m}", err=True),
         )
         for split, info in done.items():
-            sets = ", ".join(f"{k} {v[:12]}" for k, v in info["sets"].items())
+            hashes = ", ".join(f"{k} {v[:12]}" for k, v in info["sets"].items())
             kept = ", ".join(f"{k} {v}" for k, v in info["counts"].items())
             state = "the pinned sets" if info["pinned"] else "NOT the pinned sets"
-            click.echo(f"kitti-tracking {split}: {info['path']} ({state}; {sets}); windows: {kept}")
+            click.echo(f"kitti-tracking {split}: {info['path']} ({state}; {hashes}); windows: {kept}")
         return
     if kitti_paths or output is not None or image_size is not None:
         raise UsageError(

@@ -7,6 +7,6 @@ examples the way ``odmd-bench predict`` makes a turning camera's (:mod:`~odmd_be
 The sets this gives from ``../shared/kitti-tracking`` are pinned in
 ``splits/kitti-tracking.json`` and shipped in ``splits/kitti-tracking/`` (docs/kitti.md).
 
-This part sits beside :mod:`odmd_bench.predict` (layer 4): it reuses predict's
-orientation functions.
+This part sits above :mod:`odmd_bench.predict` (layer 5, docs/development.md): it reuses
+predict's orientation functions; only the command line imports it.
 """

@@ -225,7 +225,7 @@ def _careful_label_rows(p: Path, text: str) -> list[tuple[int, int, str, int, in
         where = f"line {n}"
         cells = raw.split()
         if len(cells) != 17:
-            problems.add(f"expected 17 fields, got another count", f"{where} ({len(cells)})", at=n)
+            problems.add("expected 17 fields, got another count", f"{where} ({len(cells)})", at=n)
             continue
         ints = []
         for i, (name, lo, hi) in enumerate(
@@ -239,7 +239,9 @@ def _careful_label_rows(p: Path, text: str) -> list[tuple[int, int, str, int, in
                 ints.append(int(cell))
         kind = cells[2]
         if kind not in TYPES:
-            problems.add(f"unknown type (expected one of {', '.join(TYPES)})", f"{where} ({show(kind)})", at=n)
+            problems.add(
+                f"unknown type (expected one of {', '.join(TYPES)})", f"{where} ({show(kind)})", at=n
+            )
             continue
         if kind == "DontCare":
             continue  # a region to ignore; its numbers are placeholders (-1, -10, -1000)
@@ -271,10 +273,18 @@ def _careful_label_rows(p: Path, text: str) -> list[tuple[int, int, str, int, in
     for frame, track, kind, *_, n in rows:
         first = seen.setdefault((frame, track), n)
         if first != n:
-            problems.add("a track labelled twice in one frame", f"line {n} (track {track}, frame {frame}, first on line {first})", at=n)
+            problems.add(
+                "a track labelled twice in one frame",
+                f"line {n} (track {track}, frame {frame}, first on line {first})",
+                at=n,
+            )
         known = types.setdefault(track, (kind, n))
         if known[0] != kind:
-            problems.add("a track changes type", f"line {n} (track {track}: {kind}, {known[0]} on line {known[1]})", at=n)
+            problems.add(
+                "a track changes type",
+                f"line {n} (track {track}: {kind}, {known[0]} on line {known[1]})",
+                at=n,
+            )
     _refuse(p, problems, "KITTI tracking label file")
     if not rows:
         raise ImportRefused(f"{p}: not a KITTI tracking label file", ["no object lines"])
@@ -380,6 +390,8 @@ def read_camera(path: str | os.PathLike[str], image_size: tuple[float, float] | 
     p = Path(path)
     text = _read_text(p)
     problems = Problems()
+    values: dict[str, float]
+    where: dict[str, str]
     if p.suffix == ".txt":
         found: dict[str, tuple[list[str], int]] = {}
         for n, raw in enumerate(text.splitlines(), start=1):
@@ -389,18 +401,27 @@ def read_camera(path: str | os.PathLike[str], image_size: tuple[float, float] | 
                     problems.add("P2 given twice", f"line {n} (first on line {found['P2'][1]})", at=n)
                 found["P2"] = (cells[1:], n)
         if "P2" not in found:
-            raise ImportRefused(f"{p}: not a KITTI calibration file", ["no line P2: (camera 2's projection matrix)"])
+            raise ImportRefused(
+                f"{p}: not a KITTI calibration file", ["no line P2: (camera 2's projection matrix)"]
+            )
         cells, n = found["P2"]
         if len(cells) != 12:
             problems.add("P2: expected 12 numbers", f"line {n} ({len(cells)})", at=n)
             _refuse(p, problems, "KITTI calibration file")
-        v = [_number(c, problems, f"line {n}", "P2") for c in cells]
+        p2 = [_number(c, problems, f"line {n}", "P2") for c in cells]
         _refuse(p, problems, "KITTI calibration file")
         if image_size is None:
             raise ImportRefused(
                 f"{p}: a KITTI calibration file gives no image size; give it (--image-size WIDTH HEIGHT)"
             )
-        values = {"fx": v[0], "fy": v[5], "cx": v[2], "cy": v[6], "width": image_size[0], "height": image_size[1]}
+        values = {
+            "fx": p2[0],
+            "fy": p2[5],
+            "cx": p2[2],
+            "cy": p2[6],
+            "width": image_size[0],
+            "height": image_size[1],
+        }
         where = {k: f"line {n}" for k in values}
     else:
         values, where = {}, {}

@@ -41,10 +41,10 @@ from odmd_bench.errors import ImportRefused
 from odmd_bench.kitti.readers import Camera, Labels, read_camera, read_labels, read_poses
 from odmd_bench.kitti.windows import RULES, RULES_VERSION, WindowRules, box_centres, select_windows
 from odmd_bench.predict.orientation import (
+    Carry,
     carry_boxes,
     positions_in_last,
     quaternions,
-    relative_rotations,
     rotation_matrices,
 )
 
@@ -61,7 +61,7 @@ SPLIT_SEQUENCES: dict[str, tuple[int, ...]] = {"val": tuple(range(10)), "test": 
 REFERENCE = Camera(fx=721.5377, fy=721.5377, cx=609.5593, cy=172.854, width=1242.0, height=375.0)
 
 #: How the boxes of the turning camera are carried (:mod:`odmd_bench.predict.orientation`).
-CARRY = "plane"
+CARRY: Carry = "plane"
 
 #: Decimals kept of what is derived (module docstring).
 CORNER_DECIMALS, CAMERA_DECIMALS, ROTATION_DECIMALS = 4, 9, 12
@@ -96,7 +96,9 @@ def find_sequences(
     elif poses is not None and calib is not None:
         label_dir, pose_dir, calib_dir = Path(labels), Path(poses), Path(calib)
     else:
-        raise ImportRefused("give one folder (with label_02/, poses/, calib/) or three: LABEL_DIR POSE_DIR CALIB_DIR")
+        raise ImportRefused(
+            "give one folder (with label_02/, poses/, calib/) or three: LABEL_DIR POSE_DIR CALIB_DIR"
+        )
     problems = [f"{d}: no such folder" for d in (label_dir, pose_dir, calib_dir) if not d.is_dir()]
     if problems:
         raise ImportRefused("the KITTI tracking files are not all there", problems)
@@ -107,13 +109,51 @@ def find_sequences(
         if not cam.is_file():
             cam = calib_dir / f"{name}.txt"
         files = SequenceFiles(s, label_dir / f"{name}.txt", pose_dir / f"{name}.txt", cam)
-        for f, what in ((files.labels, "labels"), (files.poses, "poses"), (files.camera, "camera file (.yaml or .txt)")):
+        for f, what in (
+            (files.labels, "labels"),
+            (files.poses, "poses"),
+            (files.camera, "camera file (.yaml or .txt)"),
+        ):
             if not f.is_file():
                 problems.append(f"{f}: missing (the {what} of sequence {name})")
         out.append(files)
     if problems:
         raise ImportRefused("the KITTI tracking files are not all there", problems)
     return out
+
+
+def orthonormal(r: np.ndarray) -> np.ndarray:
+    """The rotations (..., 3, 3) nearest ``r`` by Gram-Schmidt on its columns.
+
+    A pose file's rotations are orthonormal only to its printed digits (ORB-SLAM3's, from
+    float32: within about 4e-7); predict's quaternion conversion
+    (:func:`~odmd_bench.predict.orientation.quaternions`) reads small turns from the
+    diagonal, where such an error is a 1 % error of the turn. Elementwise arithmetic only,
+    so the result is the same on every processor.
+    """
+    a, b = r[..., :, 0], r[..., :, 1]
+    a = a / np.sqrt((a * a).sum(axis=-1, keepdims=True))
+    b = b - (a * b).sum(axis=-1, keepdims=True) * a
+    b = b / np.sqrt((b * b).sum(axis=-1, keepdims=True))
+    c = np.stack(
+        [
+            a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1],
+            a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2],
+            a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0],
+        ],
+        axis=-1,
+    )
+    return np.stack([a, b, c], axis=-1)
+
+
+def relative_to_last(r: np.ndarray) -> np.ndarray:
+    """``R_last^T R_k`` of rotations (N, n_obs, 3, 3), as :func:`~odmd_bench.predict.orientation.relative_rotations`.
+
+    Written out by element: a matrix product may run through BLAS, whose last bits differ
+    between processors, and the pinned hashes must not.
+    """
+    last = r[:, -1:]
+    return (last[..., :, :, None] * r[..., :, None, :]).sum(axis=-3)
 
 
 def _to_reference(corners: np.ndarray, cam: Camera) -> np.ndarray:
@@ -139,10 +179,14 @@ class Sequence:
 
 def read_sequence(files: SequenceFiles, image_size: tuple[float, float] | None = None) -> Sequence:
     """Read the three files of a sequence (each refused with its problems located)."""
-    return Sequence(files, read_labels(files.labels), read_poses(files.poses), read_camera(files.camera, image_size))
+    return Sequence(
+        files, read_labels(files.labels), read_poses(files.poses), read_camera(files.camera, image_size)
+    )
 
 
-def window_arrays(seq: Sequence, rules: WindowRules = RULES) -> tuple[dict[str, dict[str, np.ndarray]], dict[str, int]]:
+def window_arrays(
+    seq: Sequence, rules: WindowRules = RULES
+) -> tuple[dict[str, dict[str, np.ndarray]], dict[str, int]]:
     """The examples' arrays of one sequence by set, and how many windows each rule removed.
 
     Returns:
@@ -158,10 +202,10 @@ def window_arrays(seq: Sequence, rules: WindowRules = RULES) -> tuple[dict[str, 
     for set_name, index in by_set.items():
         rows = np.stack([windows[i].rows for i in index])
         frames = np.stack([windows[i].frames for i in index])
-        r = seq.poses[frames, :, :3]
+        r = orthonormal(seq.poses[frames, :, :3])
         # Each observation's axes in the last one's, as predict's quaternions (a matrix per
         # observation would be larger than a set's boxes, which a set file may not hold).
-        turn = np.round(quaternions(relative_rotations(r)), ROTATION_DECIMALS) + 0.0
+        turn = np.round(quaternions(relative_to_last(r)), ROTATION_DECIMALS) + 0.0
         rel = rotation_matrices(turn)
         camera = np.round(positions_in_last(seq.poses[frames, :, 3], r), CAMERA_DECIMALS) + 0.0
         seen = seq.labels.corners[rows]
@@ -322,12 +366,14 @@ def import_kitti(
     sets, counts = build_sets(labels, poses, calib, image_size=image_size)
     attrs = {split: {s: group_attrs(ex, s) for s, ex in by_set.items()} for split, by_set in sets.items()}
     differ = []
-    for split, by_set in attrs.items():
-        for s, a in by_set.items():
+    for split, hashed in attrs.items():
+        for s, a in hashed.items():
             entry = pin(b, split, s)
             for key, what in (("n", "n"), ("sha256", "content_sha256"), ("meta_sha256", "meta_sha256")):
                 if str(a[what]) != str(entry[key]):
-                    differ.append(f"{split} {s}: {what} {str(a[what])[:16]} differs from the pinned {str(entry[key])[:16]}")
+                    differ.append(
+                        f"{split} {s}: {what} {str(a[what])[:16]} differs from the pinned {str(entry[key])[:16]}"
+                    )
     if differ and output is None:
         raise ImportRefused(
             "these are not the pinned kitti-tracking sets (other labels, poses or intrinsics than "

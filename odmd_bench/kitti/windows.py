@@ -113,6 +113,7 @@ def select_windows(
     Args:
         labels: the sequence's labels.
         poses: (F, 3, 4) camera-to-world poses (frames past ``F`` have none; NaN: none).
+        rules: the rules (default: :data:`RULES`).
 
     Returns:
         ``(windows, counts)``: windows in order of (track, last frame); ``counts`` has
@@ -163,8 +164,11 @@ def failed_rules(
     """For each window, the index in :data:`RULE_NAMES` of the first rule it fails, -1 if none.
 
     Args:
+        labels: the sequence's labels.
+        poses: (F, 3, 4) camera-to-world poses.
         rows: (K, n_obs) label rows of each window's observations.
         frames: (K, n_obs) their frames.
+        rules: the rules (default: :data:`RULES`).
 
     Returns:
         (K,) int.

@@ -77,11 +77,15 @@ def data_version(examples: Mapping[str, Examples]) -> str:
     )
     if gens:
         parts.append("generator " + ", ".join(f"v{g}" for g in gens))
-    rules = sorted({int(ex.attrs["rules_version"]) for ex in examples.values() if "rules_version" in ex.attrs})
+    rules = sorted(
+        {int(ex.attrs["rules_version"]) for ex in examples.values() if "rules_version" in ex.attrs}
+    )
     if rules:  # kitti-tracking: windows cut from KITTI by versioned rules (odmd_bench.kitti.windows)
         parts.append("KITTI windows, rules " + ", ".join(f"v{r}" for r in rules))
     imported = [
-        s for s, ex in examples.items() if "generator_version" not in ex.attrs and "rules_version" not in ex.attrs
+        s
+        for s, ex in examples.items()
+        if "generator_version" not in ex.attrs and "rules_version" not in ex.attrs
     ]
     if imported and gens:
         parts.append("imported " + ", ".join(imported))

@@ -51,7 +51,9 @@ BOARDS: tuple[BoardSpec, ...] = (
     BoardSpec("odmd-paper", "test", ("normal", "camera", "object", "robot"), "ODMD, the original release"),
     BoardSpec("odmd-v1", "test", ("normal", "camera", "object", "robot"), "ODMD, generator v1"),
     BoardSpec("odms-detection", "test", ("normal", "perturb", "robot", "driving"), "ODMS converted to boxes"),
-    BoardSpec("kitti-tracking", "test", ("vehicle", "person"), "KITTI tracking, static objects (real driving)"),
+    BoardSpec(
+        "kitti-tracking", "test", ("vehicle", "person"), "KITTI tracking, static objects (real driving)"
+    ),
 )
 
 
