@@ -207,7 +207,7 @@ def test_the_carried_boxes_warped_back_bound_the_labelled_boxes() -> None:
 
 
 def test_the_shipped_sets_load_and_score_without_the_raw_files(tmp_path: Path) -> None:
-    data = load_split("test", "kitti-tracking", data_dir=tmp_path)
+    data = load_split("test", "kitti-tracking", data_dir=tmp_path / "data")
     assert list(data) == list(SETS)
     for s, ex in data.items():
         assert ex.attrs["rules_version"] == 1 and ex.attrs["carry"] == "plane"
@@ -228,11 +228,11 @@ def test_the_shipped_sets_load_and_score_without_the_raw_files(tmp_path: Path) -
             "--format",
             "json",
             "--data-dir",
-            str(tmp_path),
+            str(tmp_path / "data"),
         ],
     )
     assert r.exit_code == 0, r.output
-    result = json.loads(r.output)
+    result = json.loads(r.stdout)
     assert set(result["sets"]) == set(SETS)
 
 
@@ -244,7 +244,7 @@ def test_the_box_ls_entry_is_what_its_command_gives(tmp_path: Path) -> None:
     args = entry["command"].split()
     assert args[:2] == ["odmd-bench", "baseline"] and args[-2:] == ["-o", "predictions.csv"]
     out = tmp_path / "predictions.csv"
-    r = CliRunner().invoke(cli, [*args[1:-1], str(out), "--data-dir", str(tmp_path)])
+    r = CliRunner().invoke(cli, [*args[1:-1], str(out), "--data-dir", str(tmp_path / "data")])
     assert r.exit_code == 0, r.output
     committed = pd.read_csv(io.BytesIO(gzip.decompress((folder / "predictions.csv.gz").read_bytes())))
     rerun = pd.read_csv(out)

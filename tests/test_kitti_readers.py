@@ -44,6 +44,26 @@ def test_a_good_label_file_is_read_and_dontcare_dropped(tmp_path: Path) -> None:
     assert labels.bottom[0].tolist() == [-4.55, 1.85, 13.41] and labels.line.tolist() == [2, 3]
 
 
+def test_the_clean_file_path_reads_what_the_line_by_line_path_reads(tmp_path: Path) -> None:
+    from odmd_bench.kitti.readers import _careful_label_rows, _fast_labels
+
+    lines = [
+        DONTCARE,
+        GOOD,
+        GOOD.replace("0 0 Car", "0 1 Person_sitting 1 2", 1).replace(" 0 0 -1.79", " -1.79", 1),
+    ]
+    lines.append(GOOD.replace("0 0 Car", "3 0 Car", 1).replace("13.41", "1.5e+01"))
+    text = "\n".join(lines) + "\n"
+    fast = _fast_labels(text)
+    rows = _careful_label_rows(tmp_path / "l.txt", text)
+    assert fast is not None and fast.line.tolist() == [r[6] for r in rows] == [2, 3, 4]
+    assert fast.type.tolist() == [r[2] for r in rows] == ["Car", "Person_sitting", "Car"]
+    assert fast.truncated.tolist() == [r[3] for r in rows] and fast.occluded.tolist() == [r[4] for r in rows]
+    assert fast.frame.tolist() == [r[0] for r in rows] and fast.track.tolist() == [r[1] for r in rows]
+    assert np.array_equal(np.hstack([fast.corners, fast.size, fast.bottom]), np.array([r[5] for r in rows]))
+    assert fast.bottom[2, 2] == 15.0
+
+
 @pytest.mark.parametrize(
     ("line", "reason"),
     [

@@ -178,7 +178,7 @@ def _fast_labels(text: str) -> Labels | None:
     groups = groups[keep]
     line = np.array([n for n, _ in found], dtype=np.int64)[keep]
     ints = groups[:, [0, 1, 3, 4]].astype(np.int64)
-    numbers = groups[:, 6:].astype(np.float64)
+    numbers = groups[:, 5:].astype(np.float64)  # alpha, x1 y1 x2 y2, h w l, X Y Z, rotation_y
     frame, track, truncated, occluded = ints.T
     corners, size = numbers[:, 1:5], numbers[:, 5:8]
     pairs = frame * (int(track.max(initial=0)) + 1) + track
