@@ -554,7 +554,7 @@ def test_cli_build_writes_the_files(board: Path, v1_data_dir: Path, monkeypatch:
         cli, ["leaderboard", "build", "--root", str(board), "--data-dir", str(v1_data_dir), "--no-plot"]
     )
     assert result.exit_code == 0, result.output
-    assert "2 entries on 3 boards" in result.output and (board / lb.MARKDOWN).is_file()
+    assert f"2 entries on {len(lb.BOARDS)} boards" in result.output and (board / lb.MARKDOWN).is_file()
 
 
 # ----------------------------------------------------------------------------- the committed leaderboard
