@@ -675,7 +675,7 @@ def test_every_board_is_shown_and_an_empty_one_says_so(board: Path, v1_data_dir:
     built = lb.build(board, v1_data_dir, n_resamples=FAST)
     assert [b.spec for b in built.boards] == list(lb.BOARDS)
     empty = [b for b in built.boards if not b.rows]
-    assert {b.benchmark for b in empty} == {"odmd-paper", "odms-detection"}
+    assert {b.benchmark for b in empty} == {"odmd-paper", "odms-detection", "kitti-tracking"}
     for text in (built.markdown, built.readme_block):
         section = text[text.index("odms-detection test") :].split("#", 1)[0]
         assert (
@@ -690,7 +690,12 @@ def test_every_board_is_shown_and_an_empty_one_says_so(board: Path, v1_data_dir:
 def test_boards_match_the_registry() -> None:
     from odmd_bench.data.registry import BENCHMARKS
 
-    assert [b.key for b in lb.BOARDS] == ["odmd-paper test", "odmd-v1 test", "odms-detection test"]
+    assert [b.key for b in lb.BOARDS] == [
+        "odmd-paper test",
+        "odmd-v1 test",
+        "odms-detection test",
+        "kitti-tracking test",
+    ]
     for spec in lb.BOARDS:
         assert (
             spec.sets == BENCHMARKS[spec.benchmark].sets and spec.split in BENCHMARKS[spec.benchmark].splits
