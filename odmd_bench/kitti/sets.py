@@ -12,11 +12,15 @@ exact affine map between two pinholes at the same place (``u' = cx' + fx'/fx (u 
 so that every example of a set shares the set's ``fx, fy, cx, cy`` and image size, as a
 method expects (:meth:`~odmd_bench.data.examples.Examples.intrinsics`).
 
+The poses' rotations are first made exactly orthonormal (:func:`orthonormal`), and each
+observation's rotation relative to the last (:func:`relative_to_last`) is kept as predict's
+quaternion (the ``orientation`` extra), from which the carry's rotations are made.
+
 What is derived is rounded to a fixed grid (carried box corners to 1e-4 pixel, camera
-positions to 1e-9 m, the quaternions of the relative rotations to 1e-12): the carry's Newton steps use LAPACK,
-whose last bits differ between processors, and the pinned content hashes must come out
-the same on any machine. The grid is 100 times finer than the labels' own (0.01 pixel,
-1e-6 m).
+positions to 1e-9 m, the quaternions to 1e-12): the carry's Newton steps use LAPACK, whose
+last bits differ between processors, and the pinned content hashes must come out the same
+on any machine. The grid is 100 times finer than the labels' own (0.01 pixel, 1e-6 m).
+Where arithmetic could go through BLAS (a matrix product), it is written out by element.
 """
 
 from __future__ import annotations
