@@ -80,7 +80,9 @@ def test_check_cli(benchmark, data_dir: Path) -> None:  # type: ignore[no-untype
     assert done.returncode == 0
     median = benchmark.stats.stats.median
     benchmark.extra_info.update({"check_median_s": round(median, 3), "target_s": 3.0})
-    print(f"\nodmd-bench leaderboard check ({len(BOARDS)} boards, fresh process): {median:.2f} s (target <= 3 s)")
+    print(
+        f"\nodmd-bench leaderboard check ({len(BOARDS)} boards, fresh process): {median:.2f} s (target <= 3 s)"
+    )
     print(done.stderr.rstrip())
 
 
