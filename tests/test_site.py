@@ -204,7 +204,12 @@ def test_the_index_holds_each_board_in_board_order_and_links_every_entry(
 ) -> None:
     page = parse(site / "index.html")
     assert page.tables == _views(board_json)
-    assert set(page.tables) == {"odmd-paper-test", "odmd-v1-test", "odms-detection-test"}
+    assert set(page.tables) == {
+        "odmd-paper-test",
+        "odmd-v1-test",
+        "odms-detection-test",
+        "kitti-tracking-test",
+    }
     links = {v for tag, attr, v in page.links if tag == "a"}
     for board, methods in page.tables.items():
         for m in methods:

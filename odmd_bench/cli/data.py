@@ -9,6 +9,7 @@ import click
 
 from odmd_bench.cli.options import data_dir_option, data_dir_or_out_option
 from odmd_bench.data.registry import BENCHMARKS, SPLITS, resolve_data_dir
+from odmd_bench.errors import UsageError
 
 __all__ = ["COMMANDS"]
 
@@ -44,6 +45,7 @@ def generate(benchmark: str, split: str | None, data_dir: Path | None, force: bo
 
 @click.command(name="import")
 @click.argument("source", type=click.Path(path_type=Path))
+@click.argument("kitti_paths", nargs=-1, type=click.Path(path_type=Path), metavar="[KITTI_PATHS]...")
 @click.option(
     "--benchmark",
     type=click.Choice([b for b, v in BENCHMARKS.items() if not v.generated]),
@@ -56,12 +58,66 @@ def generate(benchmark: str, split: str | None, data_dir: Path | None, force: bo
     is_flag=True,
     help="Also import files whose SHA-256 is not one of the pinned originals (not comparable with the paper).",
 )
-def import_(source: Path, benchmark: str | None, data_dir: Path | None, allow_unknown: bool) -> None:
+@click.option(
+    "--output",
+    type=click.Path(file_okay=False, path_type=Path),
+    default=None,
+    help="kitti-tracking: write OUTPUT/val.h5 and OUTPUT/test.h5, also when they are not the "
+    "pinned sets (one's own poses); without it they must be the pinned sets and go to the data folder.",
+)
+@click.option(
+    "--image-size",
+    type=(float, float),
+    default=None,
+    metavar="WIDTH HEIGHT",
+    help="kitti-tracking with KITTI's calib/NNNN.txt, which gives no image size: the images' size in pixels.",
+)
+def import_(
+    source: Path,
+    kitti_paths: tuple[Path, ...],
+    benchmark: str | None,
+    data_dir: Path | None,
+    allow_unknown: bool,
+    output: Path | None,
+    image_size: tuple[float, float] | None,
+) -> None:
     """Convert original ODMD / ODMS-detection .pk files (a file or a folder) into HDF5.
 
     Sets already in the data folder are kept when they pass every check; a damaged
     one (or an unreadable file) is replaced, and a warning says which.
+
+    `odmd-bench import kitti-tracking KITTI_DIR` (a folder with label_02/, poses/ and
+    calib/) or `odmd-bench import kitti-tracking LABEL_DIR POSE_DIR CALIB_DIR` makes the
+    kitti-tracking val and test sets from KITTI tracking labels, camera poses (KITTI
+    odometry format) and intrinsics, by the rules of docs/kitti.md.
     """
+    if str(source) == "kitti-tracking":
+        if benchmark is not None or allow_unknown:
+            raise UsageError("--benchmark and --allow-unknown are for the original release's .pk files")
+        if len(kitti_paths) not in (1, 3):
+            raise UsageError(
+                "odmd-bench import kitti-tracking takes one folder (with label_02/, poses/, calib/) "
+                f"or three (LABEL_DIR POSE_DIR CALIB_DIR); got {len(kitti_paths)}"
+            )
+        from odmd_bench.kitti.sets import import_kitti
+
+        done = import_kitti(
+            *kitti_paths,
+            data_dir=data_dir,
+            output=output,
+            image_size=image_size,
+            progress=lambda m: click.echo(f"warning: {m}", err=True),
+        )
+        for split, info in done.items():
+            hashes = ", ".join(f"{k} {v[:12]}" for k, v in info["sets"].items())
+            kept = ", ".join(f"{k} {v}" for k, v in info["counts"].items())
+            state = "the pinned sets" if info["pinned"] else "NOT the pinned sets"
+            click.echo(f"kitti-tracking {split}: {info['path']} ({state}; {hashes}); windows: {kept}")
+        return
+    if kitti_paths or output is not None or image_size is not None:
+        raise UsageError(
+            "more than one path, --output and --image-size are for `odmd-bench import kitti-tracking`"
+        )
     from odmd_bench.data.importer import import_release
     from odmd_bench.data.registry import set_file
 

@@ -70,14 +70,23 @@ class Board:
 
 
 def data_version(examples: Mapping[str, Examples]) -> str:
-    """How the sets were made, e.g. ``generator v1 + imported robot`` or ``original release``."""
+    """How the sets were made, e.g. ``generator v1 + imported robot``, ``original release`` or ``KITTI windows, rules v1``."""
     parts = []
     gens = sorted(
         {int(ex.attrs["generator_version"]) for ex in examples.values() if "generator_version" in ex.attrs}
     )
     if gens:
         parts.append("generator " + ", ".join(f"v{g}" for g in gens))
-    imported = [s for s, ex in examples.items() if "generator_version" not in ex.attrs]
+    rules = sorted(
+        {int(ex.attrs["rules_version"]) for ex in examples.values() if "rules_version" in ex.attrs}
+    )
+    if rules:  # kitti-tracking: windows cut from KITTI by versioned rules (odmd_bench.kitti.windows)
+        parts.append("KITTI windows, rules " + ", ".join(f"v{r}" for r in rules))
+    imported = [
+        s
+        for s, ex in examples.items()
+        if "generator_version" not in ex.attrs and "rules_version" not in ex.attrs
+    ]
     if imported and gens:
         parts.append("imported " + ", ".join(imported))
     elif imported:
