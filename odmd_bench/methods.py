@@ -7,6 +7,14 @@ a module (or any object) with two functions::
     predict(examples, **options) -> depths (N,)
     predict_report(examples, **options) -> (depths (N,), {fallback: count, ...})
 
+and, optionally, a third::
+
+    predict_spread(examples, **options) -> spreads (N,)
+
+its own relative uncertainty per example (positive, unitless), which
+:mod:`odmd_bench.intervals` turns into val-calibrated error bars; a method without it
+gets intervals of one relative width per set.
+
 A third-party package adds its method to the command line without touching this one,
 by declaring in its own ``pyproject.toml``::
 
@@ -53,6 +61,7 @@ class Method:
         source: the distribution that registers it, with its version.
         predict: ``predict(examples, **options) -> depths``.
         predict_report: ``predict_report(examples, **options) -> (depths, counts)``.
+        spread: ``predict_spread(examples, **options) -> (N,)``, or None.
     """
 
     name: str
@@ -60,6 +69,7 @@ class Method:
     source: str
     predict: Callable[..., Any]
     predict_report: Callable[..., Any]
+    spread: Callable[..., Any] | None = None
 
     def accepts(self, keyword: str) -> bool:
         """Whether ``predict`` and ``predict_report`` both take ``keyword`` by name."""
@@ -194,7 +204,10 @@ def load(name: str) -> Method:
             f"method {name!r} ({ep.value}, from {_source(ep)}) is not usable: it has no "
             + " and no ".join(f"{f}()" for f in missing)
         )
-    return Method(name, ep.value, _source(ep), obj.predict, obj.predict_report)
+    spread = getattr(obj, "predict_spread", None)
+    return Method(
+        name, ep.value, _source(ep), obj.predict, obj.predict_report, spread if callable(spread) else None
+    )
 
 
 def accepting(keyword: str) -> list[str]:

@@ -11,7 +11,7 @@ from typing import Any
 
 import click
 
-from odmd_bench.cli.options import given_options, method_options, same_file
+from odmd_bench.cli.options import data_dir_option, given_options, method_options, same_file
 from odmd_bench.errors import UsageError
 
 
@@ -81,6 +81,22 @@ def error_summary(truth: Any, depth: Any) -> str:
     default=None,
     help="Depths CSV to write; '-' for standard output (default: SEQUENCES-METHOD.csv here).",
 )
+@click.option(
+    "--interval",
+    type=click.FloatRange(0, 1, min_open=True, max_open=True),
+    default=None,
+    metavar="LEVEL",
+    help="Also write error bars (depth_lo, depth_hi, level, depth_std): a central interval of this "
+    "nominal coverage, calibrated on the val sets of --calibrate-on (pooled over its sets); "
+    "docs/uncertainty.md.",
+)
+@click.option(
+    "--calibrate-on",
+    default="odmd-v1",
+    show_default=True,
+    help="Benchmark whose val sets calibrate --interval (its data is generated or imported as for evaluate).",
+)
+@data_dir_option
 @method_options
 def predict(
     sequences: str,
@@ -89,6 +105,9 @@ def predict(
     intrinsics: tuple[float, float, float, float] | None,
     normalized_boxes: bool,
     output: str | None,
+    interval: float | None,
+    calibrate_on: str,
+    data_dir: Path | None,
     **method_values: Any,  # the options of method_options (METHOD_OPTIONS)
 ) -> None:
     """Estimate the depth at the last observation of every sequence in SEQUENCES.csv.
@@ -122,7 +141,13 @@ def predict(
     options = given_options(method, **method_values)
 
     seqs = read_sequences(sequences, image_size, intrinsics, normalized_boxes=normalized_boxes)
-    result = predict_sequences(seqs, method, **options)
+    calibration = None
+    if interval is not None:
+        from odmd_bench.data.registry import resolve_benchmark
+        from odmd_bench.intervals import calibrate_method
+
+        calibration = calibrate_method(method, options, resolve_benchmark(calibrate_on), interval, data_dir)
+    result = predict_sequences(seqs, method, calibration, **options)
     text = format_depths(result)
     to_stdout = output == "-"
     path = target
@@ -145,6 +170,8 @@ def predict(
         f"of {span} observations{chose}; "
         f"depths written to {where}"
     )
+    if calibration is not None:
+        say(f"  error bars: {calibration.describe()}; the pooled factor applies")
     fallbacks = [f"{k} {v}" for k, v in result.counts.items() if isinstance(v, int) and v]
     notes = [f"{k} {v}" for k, v in result.counts.items() if isinstance(v, str)]
     say(f"  fallbacks: {', '.join(fallbacks) or 'none'}" + "".join(f"; {n}" for n in notes))

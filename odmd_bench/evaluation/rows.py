@@ -20,6 +20,7 @@ import numpy as np
 
 from odmd_bench.data.registry import BENCHMARKS, SPLITS
 from odmd_bench.evaluation.kinds import MAX_ABS_DEPTH, NONFINITE, OUT_OF_RANGE, TOO_LARGE
+from odmd_bench.evaluation.uncertainty import UNCERTAINTY_COLUMNS
 from odmd_bench.inputs.problems import SHOWN, Problems, clip, closest, show
 from odmd_bench.inputs.records import NONFINITE_CELL, NUMBER
 
@@ -47,6 +48,9 @@ class Rows:
         self.depth, self.index_ok = array("d"), array("b")
         self.nonpositive: dict[int, list[tuple[int, str]]] = {}
         self.n = 0
+        #: The uncertainty columns present, and their cells as numbers (NaN: not a number).
+        self.extra = tuple((c, cols[c]) for c in UNCERTAINTY_COLUMNS if c in cols)
+        self.extra_values = {c: array("d") for c, _ in self.extra}
 
     def add(self, line: int, cells: list[str]) -> None:
         """Check one row and keep what it holds (the hot loop: kept lean on purpose)."""
@@ -91,6 +95,9 @@ class Rows:
         self.index.append(index)
         self.depth.append(depth)
         self.index_ok.append(ok)
+        for c, i in self.extra:
+            text = cells[i]
+            self.extra_values[c].append(float(text) if _is_float(text) else self._bad_cell(c, line, text))
 
     def add_clean(self, text: str, start: int, line: int) -> bool:
         r"""Add every row of ``text[start:]`` (its first line is file line ``line``) if all are clean.
@@ -130,6 +137,8 @@ class Rows:
         self.index = array("q", np.concatenate(found.index).tobytes())
         self.depth = array("d", np.concatenate(found.depth).tobytes())
         self.index_ok = array("b", b"\x01" * found.n)
+        for c, _ in self.extra:
+            self.extra_values[c] = array("d", np.concatenate(found.extra[c]).tobytes())
         return True
 
     def _add_block(self, block: str, line: int, found: _Found) -> bool:
@@ -167,6 +176,12 @@ class Rows:
         depth = np.fromiter(map(float, depths), dtype=np.float64, count=n)
         if not np.all((depth >= -MAX_ABS_DEPTH) & (depth <= MAX_ABS_DEPTH)):
             return False
+        extra = {}
+        for c, i in self.extra:
+            column = cells[i::width]
+            if not all(map(_is_float, column)):
+                return False
+            extra[c] = np.fromiter(map(float, column), dtype=np.float64, count=n)
         code = np.fromiter(map(found.names.__getitem__, names), dtype=np.int32, count=n)
         index = np.fromiter(map(int, indices), dtype=np.int64, count=n)
         for r in np.flatnonzero(depth <= 0):
@@ -177,8 +192,21 @@ class Rows:
         found.code.append(code)
         found.index.append(index)
         found.depth.append(depth)
+        for c, values in extra.items():
+            found.extra.setdefault(c, []).append(values)
         found.n += n
         return True
+
+    def _bad_cell(self, column: str, line: int, text: str) -> float:
+        """Record why an uncertainty cell is refused; NaN stands for it from now on."""
+        if not text.strip():
+            kind = f"{column} is missing (an empty cell)"
+        elif NONFINITE_CELL.fullmatch(text):
+            kind = f"{column} is NaN or infinite"
+        else:
+            kind = f"{column} is not a number"
+        self.values.add(kind, f"line {line} ({show(text)})", at=line)
+        return _NAN
 
     def _bad_depth(self, line: int, text: str, depth: float) -> float:
         """Record why a depth is refused; NaN stands for it from now on."""
@@ -204,6 +232,7 @@ class _Found:
         self.code: list[np.ndarray] = []
         self.index: list[np.ndarray] = []
         self.depth: list[np.ndarray] = []
+        self.extra: dict[str, list[np.ndarray]] = {}
 
 
 def _tally_clean(column: list[str], line: int, valid: Sequence[str], tally: dict[str, list[int]]) -> bool:

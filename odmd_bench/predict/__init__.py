@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import inspect
 import io
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -91,6 +91,9 @@ class SequenceDepths:
         method: the method's name.
         warnings: what the checks of :mod:`odmd_bench.predict.checks` found (the scale
             of the data, the method's validity on them), one line each.
+        intervals: ``{"depth_lo", "depth_hi", "depth_std"}`` (N,) error bars, with
+            ``calibration`` given (:mod:`odmd_bench.intervals`); else empty.
+        level: their nominal coverage, or None.
     """
 
     names: tuple[str, ...]
@@ -101,6 +104,8 @@ class SequenceDepths:
     counts: dict[str, int | str]
     method: str
     warnings: tuple[str, ...] = ()
+    intervals: dict[str, np.ndarray] = field(default_factory=dict)
+    level: float | None = None
 
 
 def method_observations(method: Any) -> int | None:
@@ -116,7 +121,9 @@ def method_observations(method: Any) -> int | None:
     return None if value is None else int(value)
 
 
-def predict_sequences(sequences: Sequences, method: str | Any, **options: Any) -> SequenceDepths:
+def predict_sequences(
+    sequences: Sequences, method: str | Any, calibration: Any = None, **options: Any
+) -> SequenceDepths:
     """The depth at the last observation of every sequence, by a registered method.
 
     A method whose module declares ``OBSERVATIONS = k`` (DBox: 10) gets ``k``
@@ -127,6 +134,8 @@ def predict_sequences(sequences: Sequences, method: str | Any, **options: Any) -
     Args:
         sequences: from :func:`read_sequences`.
         method: a registered name (:func:`odmd_bench.methods.load`) or a loaded method.
+        calibration: an :class:`odmd_bench.intervals.IntervalCalibration` of this method
+            (its pooled factor): error bars for every sequence; None: none.
         **options: the method's options (``config=``, ``weights=``, ``mode=``).
 
     Returns:
@@ -147,6 +156,7 @@ def predict_sequences(sequences: Sequences, method: str | Any, **options: Any) -
     used = np.empty(n, dtype=np.int64)
     detections = np.empty(n, dtype=np.int64)
     counts: dict[str, int | str] = {}
+    bars = {c: np.empty(n) for c in ("depth_lo", "depth_hi", "depth_std")} if calibration is not None else {}
     if wanted is not None:
         short = sequences.n_obs < wanted
         if short.any():
@@ -216,6 +226,12 @@ def predict_sequences(sequences: Sequences, method: str | Any, **options: Any) -
         if other is not None:  # (a method that models the turn gets them without the rotation)
             shaped.append((index, d, _other_depths(m, ex, other, options)))
         depth[index] = d
+        if calibration is not None:
+            from odmd_bench.intervals import POOLED, method_spread
+
+            spread = method_spread(m, run_on, run_options) if hasattr(m, "spread") else None
+            for c, v in calibration.intervals(d, spread, key=POOLED).items():
+                bars[c][index] = v
         used[index] = ex.n_obs
         detections[index] = ex.detected.sum(axis=1)
         for key, value in c.items():
@@ -236,6 +252,8 @@ def predict_sequences(sequences: Sequences, method: str | Any, **options: Any) -
         counts=counts,
         method=name,
         warnings=tuple(warnings),
+        intervals=bars,
+        level=None if calibration is None else float(calibration.level),
     )
 
 
@@ -311,11 +329,19 @@ def _accepts(method: Any, keyword: str) -> bool:
 def format_depths(result: SequenceDepths) -> str:
     """The output CSV of the depths per sequence.
 
-    Columns ``sequence,depth,observations,detections`` and, where any truth is given,
+    Columns ``sequence,depth,observations,detections``, with error bars
+    ``depth_lo,depth_hi,level,depth_std``, and, where any truth is given,
     ``true_depth,percent_error`` (empty where unknown).
     """
     has_truth = bool(np.isfinite(result.truth).any())
     header = ["sequence", "depth", "observations", "detections"]
+    bars = (
+        [result.intervals[c].tolist() for c in ("depth_lo", "depth_hi", "depth_std")]
+        if result.intervals
+        else []
+    )
+    if bars:
+        header += ["depth_lo", "depth_hi", "level", "depth_std"]
     if has_truth:
         header += ["true_depth", "percent_error"]
     known = np.isfinite(result.truth) & np.isfinite(result.depth)
@@ -328,6 +354,8 @@ def format_depths(result: SequenceDepths) -> str:
     truth, err = result.truth.tolist(), pct.tolist()
     for i, name in enumerate(result.names):
         row = f"{text_cell(name)},{depth[i]!r},{obs[i]},{det[i]}"
+        if bars:
+            row += f",{bars[0][i]!r},{bars[1][i]!r},{result.level!r},{bars[2][i]!r}"
         if has_truth:
             row += f",{number_cell(truth[i])},{number_cell(err[i])}"
         buf.write(row + "\n")
