@@ -100,7 +100,7 @@ def check_values(values: Mapping[str, np.ndarray], lines: np.ndarray, problems: 
         at = lines[(level > 0) & (level < 1)]
         order = np.argsort(first)
         parts = [
-            f"{found[k]!r} ({plural(int(counts[k]), 'row')}, first on line {int(at[first[k]])})"
+            f"{float(found[k])!r} ({plural(int(counts[k]), 'row')}, first on line {int(at[first[k]])})"
             for k in order
         ]
         problems.add(
@@ -124,7 +124,9 @@ def _add(
     if not hit.size:
         return
     for i in hit[:3]:
-        shown = f"{pair[0][i]!r} > {pair[1][i]!r}" if pair is not None else repr(float(cells[i]))  # type: ignore[index]
+        shown = (
+            f"{float(pair[0][i])!r} > {float(pair[1][i])!r}" if pair is not None else repr(float(cells[i]))
+        )  # type: ignore[index]
         problems.add(kind, f"line {int(lines[i])} ({shown})", at=int(lines[hit[0]]))
     if hit.size > 3:
         problems.add(kind, count=int(hit.size - 3))
