@@ -25,7 +25,12 @@ normal, is the one whose central interval at ``L`` has the same half-width:
 ``q s |Z^| / Phi^-1((1 + L) / 2)``.
 
 A factor is fitted per set (for benchmark runs, where a test set has its val twin) and
-pooled over all val sets (``"all"``, for a user's own data). An estimate of 0 (a
+pooled over all val sets (``"all"``, for a user's own data). For a method with a spread,
+each set (and the pool) keeps the spread or drops it (``s = 1``), whichever gives the
+lower mean interval score on its val examples: a spread that does not follow the
+method's errors (a model of the box sizes alone, say, for a method that reads parallax
+too) would only make the intervals wider where they need not be. That choice is made
+on val as well, so test is never looked at. An estimate of 0 (a
 method's fallback) gets the interval ``[0, 0]``: it has no scale to be relative to.
 
 Why by hand: the method is a quantile of residuals (a few lines of numpy); the
@@ -91,14 +96,15 @@ class IntervalCalibration:
         factors: ``{set: q}`` per val set, and ``"all"`` pooled.
         sizes: ``{set: n}`` the val examples each factor was fitted on.
         source: what it was fitted on, e.g. ``"odmd-v1 val"``.
-        spread: ``"method"`` (the method's own spread) or ``"constant"`` (``s = 1``).
+        spread: ``{set: True}`` where the method's spread is used, False where ``s = 1``.
+        content_sha256: ``{set: SHA-256}`` of the val sets' content.
     """
 
     level: float
     factors: dict[str, float]
     sizes: dict[str, int]
     source: str
-    spread: str = "constant"
+    spread: dict[str, bool] = field(default_factory=dict)
     content_sha256: dict[str, str] = field(default_factory=dict)
 
     def intervals(self, depth: Any, spread: Any = None, key: str = POOLED) -> dict[str, np.ndarray]:
@@ -110,9 +116,11 @@ class IntervalCalibration:
             key: the set whose factor applies (default: pooled; a set the calibration
                 does not have gets the pooled factor).
         """
+        key = key if key in self.factors else POOLED
         d = np.asarray(depth, dtype=np.float64)
-        s = np.ones_like(d) if spread is None else np.asarray(spread, dtype=np.float64)
-        q = self.factors.get(key, self.factors[POOLED])
+        use = spread is not None and self.spread.get(key, False)
+        s = np.asarray(spread, dtype=np.float64) if use else np.ones_like(d)
+        q = self.factors[key]
         half = q * s * np.abs(d)
         lo = np.maximum(d - half, 0.0)
         hi = np.maximum(d + half, 0.0)
@@ -121,8 +129,10 @@ class IntervalCalibration:
 
     def describe(self) -> str:
         """One line: the level, the source and the factors."""
-        parts = ", ".join(f"{k} {v:.4g}" for k, v in self.factors.items())
-        return f"{self.level:g} intervals calibrated on {self.source} ({self.spread} spread): factors {parts}"
+        parts = ", ".join(
+            f"{k} {v:.4g}{' x spread' if self.spread.get(k) else ''}" for k, v in self.factors.items()
+        )
+        return f"{self.level:g} intervals calibrated on {self.source}: factors {parts}"
 
 
 def _normal_quantile(p: float) -> float:
@@ -147,17 +157,41 @@ def fit_calibration(
         >>> c.factors, c.intervals(np.array([10.0]), key="a")["depth_hi"].tolist()
         ({'a': 0.42857142857142855, 'all': 0.42857142857142855}, [14.285714285714285])
     """
-    residuals = {
-        s: relative_residuals(
-            truth[s], depth[s], np.ones(np.shape(depth[s])) if spread is None else spread[s]
-        )
-        for s in depth
-    }
-    factors = {s: conformal_quantile(r, level) for s, r in residuals.items()}
-    factors[POOLED] = conformal_quantile(np.concatenate(list(residuals.values())), level)
-    sizes = {s: int(r.size) for s, r in residuals.items()}
-    sizes[POOLED] = sum(sizes.values())
-    return IntervalCalibration(level, factors, sizes, source, "constant" if spread is None else "method")
+    factors, sizes, used = {}, {}, {}
+    for k in [*depth, POOLED]:
+        z, d = _joined(truth, depth, k), _joined(depth, depth, k)
+        choices = [(False, np.ones(np.shape(d)))]
+        if spread is not None:
+            choices.append((True, _joined(spread, depth, k)))
+        best: tuple[float, float, bool] | None = None
+        for uses, sp in choices:
+            q = conformal_quantile(relative_residuals(z, d, sp), level)
+            score = _val_interval_score(z, d, q * sp, level)
+            if best is None or score < best[0]:
+                best = (score, q, uses)
+        if best is not None:
+            _, factors[k], used[k] = best
+        sizes[k] = int(np.size(d))
+    return IntervalCalibration(level, factors, sizes, source, used)
+
+
+def _joined(values: Mapping[str, Any], sets: Mapping[str, Any], key: str) -> np.ndarray:
+    """``values[key]``, or every set's values end to end for the pooled key."""
+    if key == POOLED:
+        return np.concatenate([np.asarray(values[s], dtype=np.float64) for s in sets])
+    return np.asarray(values[key], dtype=np.float64)
+
+
+def _val_interval_score(truth: np.ndarray, depth: np.ndarray, rel_half: np.ndarray, level: float) -> float:
+    """Mean interval score on the val examples of the intervals ``depth (1 -+ rel_half)``."""
+    from odmd_bench.evaluation.uncertainty import interval_score
+
+    with np.errstate(invalid="ignore"):
+        half = rel_half * np.abs(depth)
+    if not np.isfinite(half).all():
+        return math.inf
+    lo, hi = np.maximum(depth - half, 0.0), np.maximum(depth + half, 0.0)
+    return float(np.mean(interval_score(truth, lo, hi, level)))
 
 
 def method_spread(method: Any, examples: Any, options: Mapping[str, Any]) -> np.ndarray | None:

@@ -230,8 +230,8 @@ def predict_sequences(
             from odmd_bench.intervals import POOLED, method_spread
 
             spread = method_spread(m, run_on, run_options) if hasattr(m, "spread") else None
-            for c, v in calibration.intervals(d, spread, key=POOLED).items():
-                bars[c][index] = v
+            for column, values in calibration.intervals(d, spread, key=POOLED).items():
+                bars[column][index] = values
         used[index] = ex.n_obs
         detections[index] = ex.detected.sum(axis=1)
         for key, value in c.items():
