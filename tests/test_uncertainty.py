@@ -343,3 +343,25 @@ def test_calibrated_intervals_cover_new_draws() -> None:
             with_spread = widths
         else:
             assert with_spread < widths  # the method's own spread makes them sharper
+
+
+def test_plot_reliability_diagram(sets_dir: Path, tmp_path: Path) -> None:
+    pytest.importorskip("matplotlib")
+    path = _file(tmp_path, sets_dir)
+    png, numbers = tmp_path / "rel.png", tmp_path / "rel.csv"
+    args = ["plot", str(path), "--set", "normal", "--reliability", "-o", str(png), "--csv", str(numbers)]
+    r = CliRunner().invoke(cli, [*args, "--data-dir", str(sets_dir)])
+    assert r.exit_code == 0, r.output
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    rows = [line.split(",") for line in numbers.read_text().splitlines()[1:]]
+    z = _truth(sets_dir)["normal"]
+    expected = reliability(z, 1.1 * z, 0.2 * 1.1 * z)
+    assert [float(c) for _, kind, _, c in rows if kind == "normal"] == expected
+    assert rows[-1][1:] == ["interval", "0.9", "1.0"]
+    plain = tmp_path / "plain.csv"
+    write_predictions(plain, "test", _truth(sets_dir), BENCH)
+    r = CliRunner().invoke(
+        cli,
+        ["plot", str(plain), "--set", "normal", "--reliability", "-o", str(png), "--data-dir", str(sets_dir)],
+    )
+    assert r.exit_code == 2 and "a reliability diagram needs error bars" in r.output
