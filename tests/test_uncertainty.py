@@ -193,15 +193,23 @@ def test_incomplete_interval_columns_are_refused() -> None:
 
 
 def test_clean_and_row_by_row_reading_agree() -> None:
+    rng = np.random.default_rng(5)
+    forms = ("{!r}", "{:.3e}", "{:.0f}", "{:.20f}", "{:.1f}", "{:.17g}")
     rows = "".join(
-        f"test,robot,{i},{1 + i / 7!r},{0.5 + i / 9!r},{2 + i!r},0.9,{0.1 * i!r}\n" for i in range(50)
+        f"test,robot,{i},{1 + i / 7!r},"
+        + ",".join(forms[i % len(forms)].format(float(v)) for v in sorted(rng.lognormal(0, 4, 2)))
+        + f",0.9,{forms[i % len(forms)].format(0.1 * i)}\n"
+        for i in range(600)
     )
     head = "split,set,index,depth,depth_lo,depth_hi,level,depth_std\n"
     clean = parse_predictions((head + rows).encode())
     quoted = parse_predictions((head + rows.replace("test,", '"test",')).encode())  # row by row
     assert clean.level == quoted.level == 0.9
     for c in ("depth_lo", "depth_hi", "level", "depth_std"):
-        np.testing.assert_array_equal(clean.uncertainty[c], quoted.uncertainty[c])
+        np.testing.assert_array_equal(clean.uncertainty[c], quoted.uncertainty[c])  # bit for bit
+    cells = [line.split(",") for line in rows.splitlines()]
+    assert clean.uncertainty["depth_lo"].tolist() == [float(c[4]) for c in cells]  # Python's float
+    assert clean.uncertainty["depth_std"].tolist() == [float(c[7]) for c in cells]
     assert clean.ignored_columns == ()
 
 

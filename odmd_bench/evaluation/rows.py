@@ -21,6 +21,7 @@ import numpy as np
 from odmd_bench.data.registry import BENCHMARKS, SPLITS
 from odmd_bench.evaluation.kinds import MAX_ABS_DEPTH, NONFINITE, OUT_OF_RANGE, TOO_LARGE
 from odmd_bench.evaluation.uncertainty import UNCERTAINTY_COLUMNS
+from odmd_bench.inputs.decimals import FRACTION_DIGITS, parse_decimals
 from odmd_bench.inputs.problems import SHOWN, Problems, clip, closest, show
 from odmd_bench.inputs.records import NONFINITE_CELL, NUMBER
 
@@ -176,12 +177,24 @@ class Rows:
         depth = np.fromiter(map(float, depths), dtype=np.float64, count=n)
         if not np.all((depth >= -MAX_ABS_DEPTH) & (depth <= MAX_ABS_DEPTH)):
             return False
-        extra = {}
-        for c, i in self.extra:
-            column = cells[i::width]
-            if not all(map(_is_float, column)):
+        extra: dict[str, np.ndarray] = {}
+        if self.extra:
+            # The level is one value on every row of a good file: read once.
+            varied = []
+            for c, i in self.extra:
+                if c == "level" and len(found_level := dict.fromkeys(cells[i::width])) == 1:
+                    (text,) = found_level
+                    if not _is_float(text):
+                        return False
+                    extra[c] = np.full(n, float(text))
+                else:
+                    varied.append((c, i))
+            numbers = _number_columns(block, chars, width, [i for _, i in varied], n) if varied else None
+            if varied and numbers is None:
                 return False
-            extra[c] = np.fromiter(map(float, column), dtype=np.float64, count=n)
+            for k, (c, _) in enumerate(varied):
+                extra[c] = numbers[k]  # type: ignore[index]
+            extra = {c: extra[c] for c, _ in self.extra}
         code = np.fromiter(map(found.names.__getitem__, names), dtype=np.int32, count=n)
         index = np.fromiter(map(int, indices), dtype=np.int64, count=n)
         for r in np.flatnonzero(depth <= 0):
@@ -218,6 +231,43 @@ class Rows:
             kind = "depth is not a number"
         self.values.add(kind, f"line {line} ({show(text)})", at=line)
         return float("nan")
+
+
+def _number_columns(block: str, chars: np.ndarray, width: int, cols: list[int], n: int) -> np.ndarray | None:
+    """``(len(cols), n)`` the number cells of columns ``cols`` of a clean block, or None if one is no number.
+
+    The uncertainty columns, parsed as the CSV readers' fast path parses numbers
+    (:func:`~odmd_bench.inputs.decimals.parse_decimals`, bit for bit Python's ``float``,
+    whole columns at once); a cell in another form goes through the reader's number
+    pattern and ``float``, one by one. (A call per cell for three more columns would
+    nearly double the time a file takes to read.)
+    """
+    pad = FRACTION_DIGITS  # parse_decimals reads up to this many bytes before a cell
+    buf = np.concatenate([np.full(pad, 32, dtype=np.uint8), chars, np.full(1, 10, dtype=np.uint8)])
+    seps = np.flatnonzero((buf == 44) | (buf == 10))[: n * width]  # every cell's end
+    ends = seps.reshape(n, width)
+    starts = np.empty_like(ends)
+    starts[:, 1:] = ends[:, :-1] + 1
+    starts[0, 0] = pad
+    starts[1:, 0] = ends[:-1, -1] + 1
+    dots_at = np.flatnonzero(buf == 46)
+    out = np.empty((len(cols), n))
+    for k, col in enumerate(cols):
+        start, end = starts[:, col], ends[:, col]
+        first_dot = (
+            dots_at[np.minimum(np.searchsorted(dots_at, start), max(dots_at.size - 1, 0))]
+            if dots_at.size
+            else end
+        )
+        dot = np.where((first_dot >= start) & (first_dot < end), first_dot, end)
+        values, done = parse_decimals(buf, start, end, dot)
+        for i in np.flatnonzero(~done).tolist():
+            cell = block[start[i] - pad : end[i] - pad]
+            if not _is_float(cell):
+                return None
+            values[i] = float(cell)
+        out[k] = values
+    return out
 
 
 class _Found:
