@@ -21,7 +21,7 @@ import numpy as np
 from odmd_bench.data.registry import BENCHMARKS, SPLITS
 from odmd_bench.evaluation.kinds import MAX_ABS_DEPTH, NONFINITE, OUT_OF_RANGE, TOO_LARGE
 from odmd_bench.evaluation.uncertainty import UNCERTAINTY_COLUMNS
-from odmd_bench.inputs.decimals import FRACTION_DIGITS, parse_decimals
+from odmd_bench.inputs.decimals import parse_decimals
 from odmd_bench.inputs.problems import SHOWN, Problems, clip, closest, show
 from odmd_bench.inputs.records import NONFINITE_CELL, NUMBER
 
@@ -182,14 +182,14 @@ class Rows:
             # The level is one value on every row of a good file: read once.
             varied = []
             for c, i in self.extra:
-                if c == "level" and len(found_level := dict.fromkeys(cells[i::width])) == 1:
-                    (text,) = found_level
-                    if not _is_float(text):
+                column = cells[i::width] if c == "level" else []
+                if column and column.count(column[0]) == n:
+                    if not _is_float(column[0]):
                         return False
-                    extra[c] = np.full(n, float(text))
+                    extra[c] = np.full(n, float(column[0]))
                 else:
                     varied.append((c, i))
-            numbers = _number_columns(block, chars, width, [i for _, i in varied], n) if varied else None
+            numbers = _number_columns(chars, cells, width, [i for _, i in varied]) if varied else None
             if varied and numbers is None:
                 return False
             for k, (c, _) in enumerate(varied):
@@ -233,36 +233,33 @@ class Rows:
         return float("nan")
 
 
-def _number_columns(block: str, chars: np.ndarray, width: int, cols: list[int], n: int) -> np.ndarray | None:
+def _number_columns(chars: np.ndarray, cells: list[str], width: int, cols: list[int]) -> np.ndarray | None:
     """``(len(cols), n)`` the number cells of columns ``cols`` of a clean block, or None if one is no number.
 
     The uncertainty columns, parsed as the CSV readers' fast path parses numbers
     (:func:`~odmd_bench.inputs.decimals.parse_decimals`, bit for bit Python's ``float``,
-    whole columns at once); a cell in another form goes through the reader's number
-    pattern and ``float``, one by one. (A call per cell for three more columns would
-    nearly double the time a file takes to read.)
+    whole columns at once); a cell in another form (or too near the block's start for
+    it) goes through the reader's number pattern and ``float``, one by one. (A call per
+    cell for three more columns would nearly double the time a file takes to read.)
+    ``cells`` are the block's cells, in the order of ``chars``.
     """
-    pad = FRACTION_DIGITS  # parse_decimals reads up to this many bytes before a cell
-    buf = np.concatenate([np.full(pad, 32, dtype=np.uint8), chars, np.full(1, 10, dtype=np.uint8)])
-    seps = np.flatnonzero((buf == 44) | (buf == 10))[: n * width]  # every cell's end
-    ends = seps.reshape(n, width)
+    seps = np.flatnonzero((chars == 44) | (chars == 10))  # the end of every cell but the last
+    ends = np.append(seps, chars.size)
     starts = np.empty_like(ends)
-    starts[:, 1:] = ends[:, :-1] + 1
-    starts[0, 0] = pad
-    starts[1:, 0] = ends[:-1, -1] + 1
-    dots_at = np.flatnonzero(buf == 46)
-    out = np.empty((len(cols), n))
+    starts[0] = 0
+    starts[1:] = seps + 1
+    dots_at = np.flatnonzero(chars == 46)
+    out = np.empty((len(cols), len(cells) // width))
     for k, col in enumerate(cols):
-        start, end = starts[:, col], ends[:, col]
-        first_dot = (
-            dots_at[np.minimum(np.searchsorted(dots_at, start), max(dots_at.size - 1, 0))]
-            if dots_at.size
-            else end
-        )
-        dot = np.where((first_dot >= start) & (first_dot < end), first_dot, end)
-        values, done = parse_decimals(buf, start, end, dot)
+        start, end = starts[col::width], ends[col::width]
+        if dots_at.size:
+            first_dot = dots_at[np.minimum(np.searchsorted(dots_at, start), dots_at.size - 1)]
+            dot = np.where((first_dot >= start) & (first_dot < end), first_dot, end)
+        else:
+            dot = end
+        values, done = parse_decimals(chars, start, end, dot)
         for i in np.flatnonzero(~done).tolist():
-            cell = block[start[i] - pad : end[i] - pad]
+            cell = cells[i * width + col]
             if not _is_float(cell):
                 return None
             values[i] = float(cell)
