@@ -110,7 +110,9 @@ def _unc_columns(result: EvaluationResult) -> list[tuple[str, str, Callable[[dic
 def _unc_all(result: EvaluationResult) -> dict[str, str]:
     """The ``All`` row's cells of the uncertainty table, by csv name."""
     a = result.all_uncertainty
-    out = {k: f"{a[k]:.2f}" for k in ("sharpness_mean", "interval_score_mean", "crps_mean") if k in a}
+    out: dict[str, str] = {
+        k: f"{a[k]:.2f}" for k in ("sharpness_mean", "interval_score_mean", "crps_mean") if k in a
+    }
     if "coverage" in a:
         out["coverage"] = f"{100 * a['coverage']:.2f}"
         out["coverage_error"] = signed(100 * a["coverage_error"])

@@ -222,7 +222,9 @@ def _per_example_uncertainty(
     """The per-example uncertainty columns of one set (see :meth:`EvaluationResult.per_example`)."""
     from odmd_bench.evaluation.uncertainty import covered, crps_normal, interval_score
 
-    out = {c: columns[c] for c in ("depth_lo", "depth_hi", "depth_std") if c in columns}
+    out: dict[str, np.ndarray] = {
+        c: columns[c] for c in ("depth_lo", "depth_hi", "depth_std") if c in columns
+    }
     if "coverage" in metrics:
         lo, hi = columns["depth_lo"], columns["depth_hi"]
         out["covered"] = covered(truth, lo, hi).astype(np.int64)

@@ -120,13 +120,15 @@ def _add(
     cells: np.ndarray | None,
     pair: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> None:
+    """Count the rows of ``mask`` as ``kind``, the first three located with their cells."""
     hit = np.flatnonzero(mask)
     if not hit.size:
         return
     for i in hit[:3]:
-        shown = (
-            f"{float(pair[0][i])!r} > {float(pair[1][i])!r}" if pair is not None else repr(float(cells[i]))
-        )  # type: ignore[index]
+        if pair is not None:
+            shown = f"{float(pair[0][i])!r} > {float(pair[1][i])!r}"
+        else:
+            shown = repr(float(cells[i])) if cells is not None else ""
         problems.add(kind, f"line {int(lines[i])} ({shown})", at=int(lines[hit[0]]))
     if hit.size > 3:
         problems.add(kind, count=int(hit.size - 3))
@@ -193,7 +195,8 @@ def covered(y_true: Any, lo: Any, hi: Any) -> np.ndarray:
 def normal_cdf(u: np.ndarray) -> np.ndarray:
     """``Phi(u)``, the standard normal distribution function, elementwise (``math.erf``)."""
     u = np.asarray(u, dtype=np.float64)
-    return 0.5 * (1.0 + _erf(u / math.sqrt(2.0)).astype(np.float64))
+    erf = np.asarray(_erf(u / math.sqrt(2.0)), dtype=np.float64)
+    return 0.5 * (1.0 + erf)
 
 
 def crps_normal(y_true: Any, mean: Any, std: Any) -> np.ndarray:
