@@ -46,7 +46,7 @@ published 21.23):
 Error bars: ``predict_spread`` is the box-size posterior's spread of
 :mod:`odmd_bench_baselines.robust.spread` (the information Box_LS uses: box sizes and
 camera ``z``), which ``odmd-bench baseline box-ls --interval 0.9`` turns into intervals
-calibrated on val (:mod:`odmd_bench.intervals`).
+calibrated on val (:mod:`odmd_bench.predict.intervals`).
 
 The output never holds NaN or infinity. Negative depths are legal least-squares answers
 on noisy data and are returned as they are (the paper's numbers include them).

@@ -12,7 +12,7 @@ and, optionally, a third::
     predict_spread(examples, **options) -> spreads (N,)
 
 its own relative uncertainty per example (positive, unitless), which
-:mod:`odmd_bench.intervals` turns into val-calibrated error bars; a method without it
+:mod:`odmd_bench.predict.intervals` turns into val-calibrated error bars; a method without it
 gets intervals of one relative width per set.
 
 A third-party package adds its method to the command line without touching this one,

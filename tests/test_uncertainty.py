@@ -32,7 +32,7 @@ from odmd_bench.evaluation.uncertainty import (
     normal_quantile,
     reliability,
 )
-from odmd_bench.intervals import conformal_quantile, fit_calibration, relative_residuals
+from odmd_bench.predict.intervals import conformal_quantile, fit_calibration, relative_residuals
 
 BENCH = "odmd-paper"
 SIZES = {"normal": 7, "camera": 5, "object": 6, "robot": 4}

@@ -1,6 +1,6 @@
 """Methods with error bars: robust, Box_LS and DBox give calibrated 90 % intervals on odmd-v1 test.
 
-The intervals are calibrated on the val sets only (:mod:`odmd_bench.intervals`); on every
+The intervals are calibrated on the val sets only (:mod:`odmd_bench.predict.intervals`); on every
 test set their coverage lies within 85-95 %. The committed uncertainty entries
 (``leaderboard/uncertainty/``) are what the commands in them write now.
 """
@@ -21,7 +21,7 @@ import odmd_bench
 from odmd_bench import methods
 from odmd_bench.cli.main import cli
 from odmd_bench.evaluation.parse import parse_predictions
-from odmd_bench.intervals import calibrate_method
+from odmd_bench.predict.intervals import calibrate_method
 
 ROOT = Path(__file__).resolve().parents[1]
 ENTRIES = ROOT / "leaderboard" / "uncertainty"

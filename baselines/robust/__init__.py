@@ -110,7 +110,7 @@ observations give 0 (``too_few_detections``); used observations all at the same 
 Error bars: :func:`predict_spread` (:mod:`~odmd_bench_baselines.robust.spread`) gives
 each estimate's spread, the posterior standard deviation of ``log Z`` from the box
 sizes, which ``odmd-bench baseline robust --interval 0.9`` turns into intervals
-calibrated on val (:mod:`odmd_bench.intervals`).
+calibrated on val (:mod:`odmd_bench.predict.intervals`).
 
 Hyperparameters (:data:`DEFAULT_PARAMS`) were chosen on the ``val`` sets only by
 ``python -m odmd_bench_baselines.robust_search`` (see that module for the grid and the command).

@@ -12,7 +12,7 @@ posterior standard deviation of ``log Z`` on a grid of ``GRID`` points, so a rel
 one: 0.1 means "about 10 % either way". Where the boxes cannot tell depth at all (fewer
 than two usable observations, no ``z`` motion) it is :data:`UNRESOLVED`.
 
-It is a *shape* of the uncertainty, not its size: :mod:`odmd_bench.intervals` scales it
+It is a *shape* of the uncertainty, not its size: :mod:`odmd_bench.predict.intervals` scales it
 by a factor fitted on the val sets (split conformal), so that the intervals cover what
 they claim whether or not this model's noise is the data's.
 """

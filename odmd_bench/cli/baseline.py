@@ -132,7 +132,7 @@ def baseline(
     uncertainty = None
     said_interval = ""
     if interval is not None:
-        from odmd_bench.intervals import calibrate_method, method_spread
+        from odmd_bench.predict.intervals import calibrate_method, method_spread
 
         calibration = calibrate_method(method, options, benchmark, interval, data_dir)
         uncertainty = {

@@ -144,7 +144,7 @@ def predict(
     calibration = None
     if interval is not None:
         from odmd_bench.data.registry import resolve_benchmark
-        from odmd_bench.intervals import calibrate_method
+        from odmd_bench.predict.intervals import calibrate_method
 
         calibration = calibrate_method(method, options, resolve_benchmark(calibrate_on), interval, data_dir)
     result = predict_sequences(seqs, method, calibration, **options)

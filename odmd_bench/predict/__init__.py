@@ -92,7 +92,7 @@ class SequenceDepths:
         warnings: what the checks of :mod:`odmd_bench.predict.checks` found (the scale
             of the data, the method's validity on them), one line each.
         intervals: ``{"depth_lo", "depth_hi", "depth_std"}`` (N,) error bars, with
-            ``calibration`` given (:mod:`odmd_bench.intervals`); else empty.
+            ``calibration`` given (:mod:`odmd_bench.predict.intervals`); else empty.
         level: their nominal coverage, or None.
     """
 
@@ -134,7 +134,7 @@ def predict_sequences(
     Args:
         sequences: from :func:`read_sequences`.
         method: a registered name (:func:`odmd_bench.methods.load`) or a loaded method.
-        calibration: an :class:`odmd_bench.intervals.IntervalCalibration` of this method
+        calibration: an :class:`odmd_bench.predict.intervals.IntervalCalibration` of this method
             (its pooled factor): error bars for every sequence; None: none.
         **options: the method's options (``config=``, ``weights=``, ``mode=``).
 
@@ -227,7 +227,7 @@ def predict_sequences(
             shaped.append((index, d, _other_depths(m, ex, other, options)))
         depth[index] = d
         if calibration is not None:
-            from odmd_bench.intervals import POOLED, method_spread
+            from odmd_bench.predict.intervals import POOLED, method_spread
 
             spread = method_spread(m, run_on, run_options) if hasattr(m, "spread") else None
             for column, values in calibration.intervals(d, spread, key=POOLED).items():
