@@ -7,6 +7,14 @@ a module (or any object) with two functions::
     predict(examples, **options) -> depths (N,)
     predict_report(examples, **options) -> (depths (N,), {fallback: count, ...})
 
+and, optionally, a third::
+
+    predict_spread(examples, **options) -> spreads (N,)
+
+its own relative uncertainty per example (positive, unitless), which
+:mod:`odmd_bench.predict.intervals` turns into val-calibrated error bars; a method without it
+gets intervals of one relative width per set.
+
 A third-party package adds its method to the command line without touching this one,
 by declaring in its own ``pyproject.toml``::
 
@@ -173,6 +181,7 @@ class Method:
         predict: ``predict(examples, **options) -> depths``.
         predict_report: ``predict_report(examples, **options) -> (depths, counts)``.
         options: the options its module declares (``OPTIONS``), in their order.
+        spread: ``predict_spread(examples, **options) -> (N,)``, or None.
     """
 
     name: str
@@ -181,6 +190,7 @@ class Method:
     predict: Callable[..., Any]
     predict_report: Callable[..., Any]
     options: tuple[MethodOption, ...] = ()
+    spread: Callable[..., Any] | None = None
 
     def option(self, name: str) -> MethodOption | None:
         """The declared option ``name`` (a keyword, ``weights_sha256``), or ``None``."""
@@ -370,7 +380,16 @@ def load(name: str) -> Method:
         raise UsageError(
             f"method {name!r} ({ep.value}, from {_source(ep)}) is not usable: its OPTIONS", problems
         )
-    return Method(name, ep.value, _source(ep), obj.predict, obj.predict_report, tuple(declared))
+    spread = getattr(obj, "predict_spread", None)
+    return Method(
+        name,
+        ep.value,
+        _source(ep),
+        obj.predict,
+        obj.predict_report,
+        tuple(declared),
+        spread if callable(spread) else None,
+    )
 
 
 def declaration_problems(declared: object, functions: Sequence[Callable[..., Any]]) -> list[str]:
