@@ -465,7 +465,7 @@ def format_command(
 
 
 #: ``odmd-bench baseline``'s own options that take a value (not the method's).
-BASELINE_OPTIONS: tuple[str, ...] = ("--benchmark", "--split", "-o", "--output", "--data-dir")
+BASELINE_OPTIONS: tuple[str, ...] = ("--benchmark", "--split", "-o", "--output", "--data-dir", "--interval")
 
 
 def parse_command(command: str) -> tuple[str, dict[str, str], dict[str, str]]:

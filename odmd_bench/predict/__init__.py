@@ -190,7 +190,11 @@ def predict_sequences(
     if _accepts(m, "missing"):  # the method's own rule (robust leaves them out of its fit)
         options = {**options, "missing": missing}
         omit = False
-    bars = {c: np.full(n, np.nan) for c in ("depth_lo", "depth_hi", "depth_std")} if calibration is not None else {}
+    bars = (
+        {c: np.full(n, np.nan) for c in ("depth_lo", "depth_hi", "depth_std")}
+        if calibration is not None
+        else {}
+    )
     if wanted is not None:
         short = sequences.n_obs < wanted
         if short.any():
