@@ -49,7 +49,7 @@ _ENTRY = (
     "runnable",
     "reason",
     "sets",
-    "all",
+    "generated_mean",
     "flagged",
 )
 _TEST = ("committed", "fresh", "fresh_interval", "difference", "p", "p_adjusted")
@@ -176,18 +176,28 @@ def _entry_problems(e: object, sets: list[str]) -> list[str]:
         return ["must be an object"]
     missing = [k for k in _ENTRY if k not in e]
     unknown = [k for k in e if k not in _ENTRY]
+    if "all" in e and "generated_mean" not in e:
+        return [
+            "field `all` is that of an older odmd-bench (now `generated_mean`, the mean over the generated "
+            "sets, not the board's All): record the audit again (odmd-bench leaderboard audit --seed N --record)"
+        ]
     if missing or unknown:
         return [f"fields {', '.join(_ENTRY)} expected"]
     if not all(isinstance(e[k], str) for k in ("method", "name", "command", "predictions_csv_sha256")):
         return ["method, name, command and predictions_csv_sha256 must be text"]
     if e["runnable"] is False:
-        ok = isinstance(e["reason"], str) and e["sets"] == {} and e["all"] is None and e["flagged"] is None
-        return [] if ok else ["an entry not re-run has a reason, and no sets, all or flag"]
+        ok = (
+            isinstance(e["reason"], str)
+            and e["sets"] == {}
+            and e["generated_mean"] is None
+            and e["flagged"] is None
+        )
+        return [] if ok else ["an entry not re-run has a reason, and no sets, generated_mean or flag"]
     if e["runnable"] is not True or e["reason"] is not None or not isinstance(e["flagged"], bool):
         return ["runnable must be true or false; a re-run entry has no reason and a flag"]
     if not isinstance(e["sets"], dict) or sorted(e["sets"]) != sorted(sets):
         return [f"sets must be {', '.join(sets)}"]
-    tests = [*e["sets"].values(), e["all"]]
+    tests = [*e["sets"].values(), e["generated_mean"]]
     for t in tests:
         if not isinstance(t, dict) or not all(k in t for k in _TEST):
             return [f"each test has {', '.join(_TEST)}"]
@@ -204,8 +214,13 @@ def audit_problems(audits: Sequence[Mapping[str, Any]], boards: Sequence[Board])
 
     Each audited entry must be on the board with the predictions it was audited with
     (their SHA-256) and the same committed means; otherwise the audit is stale: record
-    a new one (``leaderboard audit --seed N --record``) or remove the file.
+    a new one (``leaderboard audit --seed N --record``) or remove the file. An entry of a
+    method shipped in this repository must have been re-run: "not re-run" there means
+    the audit was recorded where it could not run (torch missing, say). Entries of the
+    board that no audit lists are not a problem: they are not audited yet.
     """
+    from odmd_bench.leaderboard.audit import shipped
+
     board = next((b for b in boards if (b.benchmark, b.split) == ("odmd-v1", "test")), None)
     rows = {r.entry.method: r for r in board.rows} if board is not None else {}
     problems = []
@@ -219,6 +234,14 @@ def audit_problems(audits: Sequence[Mapping[str, Any]], boards: Sequence[Board])
                 continue
             if row.result.provenance["predictions_sha256"] != e["predictions_csv_sha256"]:
                 problems.append(f"{name}: entry {e['method']}'s predictions changed since the audit; {fix}")
+                continue
+            method = shipped(row.entry)
+            if not e["runnable"] and method is not None:
+                problems.append(
+                    f"{name}: entry {e['method']} runs {method}, a method shipped in this repository, but the "
+                    f"audit says it was not re-run ({e['reason']}): an audit recorded where it could not run "
+                    f"(torch missing, no --original, ...); {fix.replace('record it again', 'record it again where it runs')}"
+                )
                 continue
             for s, t in e["sets"].items():
                 now = rounded(row.result.sets[s]["percent_error"]["mean"]) if s in row.result.sets else None
@@ -242,7 +265,7 @@ def shown(audits: Sequence[Mapping[str, Any]]) -> dict[str, dict[str, Any]]:
     out: dict[str, dict[str, Any]] = {}
     for doc in sorted(audits, key=lambda d: (d["date"], d["seed"])):
         for e in doc["entries"]:
-            t = e["all"] or {}
+            t = e["generated_mean"] or {}
             out[e["method"]] = {
                 "seed": doc["seed"],
                 "file": f"{AUDITS}/{doc['seed']}.json",
