@@ -532,6 +532,11 @@ def test_plain_check_refuses_a_malformed_or_stale_audit(audited_board: Path, v1_
     assert shape_problems(doc, 3) == [
         "entry memorise: runnable must be true or false; a re-run entry has no reason and a flag"
     ]
+    doc["entries"][1] = {("all" if k == "generated_mean" else k): v for k, v in doc["entries"][1].items()}
+    assert shape_problems(doc, 3) == [
+        "entry memorise: field `all` is that of an older odmd-bench (now `generated_mean`, the mean over the "
+        "generated sets, not the board's All): record the audit again (odmd-bench leaderboard audit --seed N --record)"
+    ]
 
 
 # ------------------------------------------------------------------- one entry, partial environments
@@ -851,6 +856,18 @@ def test_an_entry_no_audit_lists_is_allowed(audited_board: Path, v1_data_dir: Pa
     lb.write(audited_board, built, plot=False)
     recorded_plot(audited_board)
     assert lb.check(audited_board, v1_data_dir, n_resamples=FAST) == []
+
+
+@pytest.mark.slow
+def test_check_audits_passes_on_the_committed_audit(
+    v1_data_dir: Path, original_release: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The committed audit (recorded on an Intel Xeon) re-run here, whatever the processor."""
+    pytest.importorskip("torch")
+    monkeypatch.setattr(au, "PERMUTATIONS", 9_999)  # the committed audit's
+    said: list[str] = []
+    assert au.rerun_audits(BOARD, v1_data_dir, original_release, progress=said.append) == []
+    assert any("of what another processor may give" in line for line in said), said
 
 
 @pytest.mark.slow

@@ -900,7 +900,8 @@ def audit_table(result: Mapping[str, Any]) -> str:
     ]
     for e in result["entries"]:
         if not e["runnable"]:
-            lines.append(f"{e['method']:<22} not audited: {e['reason']}")
+            failed = str(e["reason"]).startswith("failed: ")
+            lines.append(f"{e['method']:<22} {'' if failed else 'not audited: '}{e['reason']}")
             continue
         for s, v in [*e["sets"].items(), (MEAN_LABEL, e["generated_mean"])]:
             lo, hi = v["fresh_interval"]
