@@ -28,6 +28,7 @@ from odmd_bench import methods
 from odmd_bench.cli.main import cli
 from odmd_bench.errors import UsageError
 from odmd_bench.leaderboard import audit as au
+from odmd_bench.leaderboard import audit_check as ac
 from odmd_bench.leaderboard.audit_files import audit_path, read_audits, shape_problems
 
 REPO = Path(__file__).resolve().parents[1]
@@ -359,7 +360,7 @@ def test_check_audits_re_runs_the_record_and_names_a_difference(
     doc = json.loads(path.read_text())
     doc["entries"][1]["generated_mean"]["fresh"] += 1.0
     path.write_text(au.audit_json(doc))
-    problems = au.rerun_audits(audited_board, v1_data_dir)
+    problems = ac.rerun_audits(audited_board, v1_data_dir)
     assert len(problems) == 1 and problems[0].startswith(
         "audits/3.json: entries[memorise].generated_mean.fresh: committed"
     )
@@ -449,7 +450,7 @@ def test_check_audits_fails_on_a_changed_figure_even_with_the_tolerance(
     doc = json.loads(path.read_text())
     change(doc)
     path.write_text(au.audit_json(doc))
-    problems = au.rerun_audits(audited_board, v1_data_dir)
+    problems = ac.rerun_audits(audited_board, v1_data_dir)
     assert len(problems) == 1 and problems[0].startswith(f"audits/3.json: {expected}"), problems
     checked = _check_audits(audited_board, v1_data_dir)
     assert checked.exit_code == 1, checked.output
@@ -467,7 +468,7 @@ def test_check_audits_fails_where_the_flag_is_flipped_with_its_p_values(
         t["p"] = t["p_adjusted"] = 1.0
     cheat["flagged"] = False
     path.write_text(au.audit_json(doc))
-    problems = au.rerun_audits(audited_board, v1_data_dir)
+    problems = ac.rerun_audits(audited_board, v1_data_dir)
     assert "audits/3.json: entries[memorise].flagged: committed False, the re-run gives True" in problems
     assert any(
         p.startswith("audits/3.json: entries[memorise].generated_mean.p: committed 1.0, the re-run gives")
@@ -477,8 +478,6 @@ def test_check_audits_fails_where_the_flag_is_flipped_with_its_p_values(
 
 def test_the_p_value_range_holds_every_p_a_perturbation_within_the_bounds_gives() -> None:
     """Fresh errors moved by up to their bound, adversarially and at random: p stays in the range."""
-    from odmd_bench.leaderboard import audit_check as ac
-
     rng = np.random.default_rng(8)
     committed = {s: rng.exponential(5.0, (40, 3)) for s in "ab"}
     fresh = {s: rng.exponential(5.0, (120, 3)) for s in "ab"}
@@ -577,7 +576,7 @@ def test_check_audits_passes_where_a_recorded_plug_in_is_not_installed(
     doc = json.loads(path.read_text())
     doc["entries"][0]["sets"]["camera"]["fresh"] += 0.01
     path.write_text(au.audit_json(doc))
-    assert [p.split(": committed")[0] for p in au.rerun_audits(audited_board, v1_data_dir)] == [
+    assert [p.split(": committed")[0] for p in ac.rerun_audits(audited_board, v1_data_dir)] == [
         "audits/3.json: entries[box-ls].sets.camera.fresh"
     ]
 
@@ -866,7 +865,7 @@ def test_check_audits_passes_on_the_committed_audit(
     pytest.importorskip("torch")
     monkeypatch.setattr(au, "PERMUTATIONS", 9_999)  # the committed audit's
     said: list[str] = []
-    assert au.rerun_audits(BOARD, v1_data_dir, original_release, progress=said.append) == []
+    assert ac.rerun_audits(BOARD, v1_data_dir, original_release, progress=said.append) == []
     assert any("of what another processor may give" in line for line in said), said
 
 

@@ -101,7 +101,7 @@ def check_command(root: Path | None, data_dir: Path | None, original: Path | Non
         )
     differences = list(report.differences)
     if audits and not report.differences:
-        from odmd_bench.leaderboard.audit import rerun_audits
+        from odmd_bench.leaderboard.audit_check import rerun_audits
 
         differences = rerun_audits(
             folder, data_dir, original, progress=lambda line: click.echo(line, err=True)

@@ -42,7 +42,7 @@ import numpy as np
 
 from odmd_bench.data.examples import Examples
 from odmd_bench.errors import OdmdError, UsageError, ValidationError
-from odmd_bench.leaderboard.audit_files import audit_json
+from odmd_bench.leaderboard.audit_files import audit_json, command_method, shipped
 from odmd_bench.leaderboard.entry import Entry
 from odmd_bench.leaderboard.specs import SET_TITLES
 from odmd_bench.leaderboard.specs import rounded as _r
@@ -231,42 +231,6 @@ def parse_command(command: str, benchmark: str = BENCHMARK) -> tuple[str, dict[s
         raise ValueError(f"its command runs on split {given['--split']}, not {SPLIT}")
     options = {o[2:].replace("-", "_"): v for o, v in given.items() if o in _METHOD_OPTIONS}
     return names[0], options
-
-
-def command_method(command: str) -> str:
-    """The NAME of an ``odmd-bench baseline NAME ...`` command, its options not read.
-
-    Raises:
-        ValueError: the command is not one, in words.
-
-    Example:
-        >>> command_method("odmd-bench baseline my-method --mode x -o p.csv")
-        'my-method'
-    """
-    try:
-        words = shlex.split(command)
-    except ValueError as e:
-        raise ValueError(f"its command cannot be read as words ({e})") from None
-    if words[:2] != ["odmd-bench", "baseline"] or len(words) < 3 or words[2].startswith("-"):
-        shown = " ".join(words[:2]) or "nothing"
-        raise ValueError(f"its command is not `odmd-bench baseline NAME ...` (it starts with {shown!r})")
-    return words[2]
-
-
-def shipped(entry: Entry) -> str | None:
-    """The method an entry runs when it is one shipped in this repository (registered by odmd-bench), else None.
-
-    Read from the installed metadata alone: nothing is imported (plain ``check`` uses it).
-    """
-    from odmd_bench import methods
-
-    if getattr(entry.meta, "plugin", None) is not None:
-        return None
-    try:
-        name = command_method(entry.meta.command)
-    except ValueError:
-        return None
-    return name if name in methods.own_names() else None
 
 
 def resolve_target(entry: Entry, repo: Path, original: str | os.PathLike[str] | None = None) -> Target:
@@ -816,22 +780,6 @@ def flagged(result: Mapping[str, Any]) -> list[str]:
     return [e["method"] for e in result["entries"] if e.get("flagged")]
 
 
-def rerun_audits(
-    root: str | os.PathLike[str],
-    data_dir: str | os.PathLike[str] | None = None,
-    original: str | os.PathLike[str] | None = None,
-    progress: Callable[[str], None] | None = None,
-) -> list[str]:
-    """Re-run every recorded audit (``leaderboard check --audits``): one line per difference.
-
-    :func:`odmd_bench.leaderboard.audit_check.rerun_audits`: the exact fields compared as
-    they are, those computed from the re-run's depths within what another processor gives.
-    """
-    from odmd_bench.leaderboard.audit_check import rerun_audits as check
-
-    return check(root, data_dir, original, progress)
-
-
 def record_problems(root: str | os.PathLike[str], result: Mapping[str, Any]) -> list[str]:
     """Why ``result`` must not be recorded (``audit --record``): empty when it may.
 
@@ -952,7 +900,6 @@ __all__ = [
     "permutations_for",
     "record_problems",
     "rerun",
-    "rerun_audits",
     "resolve_target",
     "shipped",
 ]

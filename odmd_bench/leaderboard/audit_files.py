@@ -4,7 +4,7 @@
 result here. ``build`` shows, for each audited entry, the fresh mean beside the committed
 one (:func:`shown`), and refuses an audit file that is malformed or no longer describes
 the board (:func:`audit_problems`: an entry gone, or its predictions changed since);
-``check --audits`` re-runs each file (:func:`~odmd_bench.leaderboard.audit.rerun_audits`).
+``check --audits`` re-runs each file (:func:`~odmd_bench.leaderboard.audit_check.rerun_audits`).
 Nothing here runs a method.
 """
 
@@ -13,6 +13,7 @@ from __future__ import annotations
 import json
 import os
 import re
+import shlex
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -22,6 +23,7 @@ from odmd_bench.leaderboard.specs import rounded
 
 if TYPE_CHECKING:
     from odmd_bench.leaderboard.board import Board
+    from odmd_bench.leaderboard.entry import Entry
 
 #: The folder of recorded audits, in the leaderboard folder.
 AUDITS = "audits"
@@ -209,6 +211,42 @@ def _entry_problems(e: object, sets: list[str]) -> list[str]:
     return []
 
 
+def command_method(command: str) -> str:
+    """The NAME of an ``odmd-bench baseline NAME ...`` command, its options not read.
+
+    Raises:
+        ValueError: the command is not one, in words.
+
+    Example:
+        >>> command_method("odmd-bench baseline my-method --mode x -o p.csv")
+        'my-method'
+    """
+    try:
+        words = shlex.split(command)
+    except ValueError as e:
+        raise ValueError(f"its command cannot be read as words ({e})") from None
+    if words[:2] != ["odmd-bench", "baseline"] or len(words) < 3 or words[2].startswith("-"):
+        shown = " ".join(words[:2]) or "nothing"
+        raise ValueError(f"its command is not `odmd-bench baseline NAME ...` (it starts with {shown!r})")
+    return words[2]
+
+
+def shipped(entry: Entry) -> str | None:
+    """The method an entry runs when it is one shipped in this repository (registered by odmd-bench), else None.
+
+    Read from the installed metadata alone: nothing is imported (plain ``check`` uses it).
+    """
+    from odmd_bench import methods
+
+    if getattr(entry.meta, "plugin", None) is not None:
+        return None
+    try:
+        name = command_method(entry.meta.command)
+    except ValueError:
+        return None
+    return name if name in methods.own_names() else None
+
+
 def audit_problems(audits: Sequence[Mapping[str, Any]], boards: Sequence[Board]) -> list[str]:
     """Where a recorded audit no longer describes the board: an entry gone, or scored otherwise.
 
@@ -219,8 +257,6 @@ def audit_problems(audits: Sequence[Mapping[str, Any]], boards: Sequence[Board])
     the audit was recorded where it could not run (torch missing, say). Entries of the
     board that no audit lists are not a problem: they are not audited yet.
     """
-    from odmd_bench.leaderboard.audit import shipped
-
     board = next((b for b in boards if (b.benchmark, b.split) == ("odmd-v1", "test")), None)
     rows = {r.entry.method: r for r in board.rows} if board is not None else {}
     problems = []
@@ -290,6 +326,8 @@ def shown(audits: Sequence[Mapping[str, Any]]) -> dict[str, dict[str, Any]]:
 
 __all__ = [
     "AUDITS",
+    "command_method",
+    "shipped",
     "MAX_AUDIT_BYTES",
     "audit_path",
     "audit_problems",
