@@ -4,14 +4,20 @@ from __future__ import annotations
 
 import gzip
 import io
+import json
+import os
+import subprocess
+import sys
+import time
 from pathlib import Path
 
 import pytest
 from click.testing import CliRunner
 
-from odmd_bench import ValidationError
+from odmd_bench import UsageError, ValidationError
 from odmd_bench.cli.main import cli
 from odmd_bench.inputs.source import CHUNK_BYTES, LIMIT_ENV, read_source
+from odmd_bench.leaderboard.site import MANIFEST, write_site
 
 HEADER = b"sequence,observation,x1,y1,x2,y2,cam_x,cam_y,cam_z\n"
 ONE_ROW = HEADER + b"a,0,1,1,2,2,0,0,0\n"  # refused for its content: one observation
@@ -83,3 +89,140 @@ def test_a_regular_file_is_read_whole_in_one_read(tmp_path: Path) -> None:
     assert len(data) == 2 * CHUNK_BYTES + 3
     with pytest.raises(ValidationError, match="larger than"):
         read_source(path, limit=2 * CHUNK_BYTES + 2)
+
+
+# --- train-dbox claims its --out folder ---------------------------------------------------
+
+WORKER = Path(__file__).parent / "dbox_worker.py"
+
+
+def _train(out: Path, steps: int, *more: str) -> subprocess.Popen[str]:
+    pytest.importorskip("torch")
+    args = ["train-dbox", "--config", "p", "--steps", str(steps), "--val-every", str(steps), "--seed", "3"]
+    args += ["--device", "cpu", "--threads", "1", "--out", str(out), *more]
+    env = {**os.environ, "OMP_NUM_THREADS": "1", "PYTHONWARNINGS": "error"}
+    return subprocess.Popen(
+        [sys.executable, str(WORKER), *args],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+    )
+
+
+def test_two_runs_started_together_into_one_folder_one_trains_and_the_other_is_refused(
+    tmp_path: Path,
+) -> None:
+    out = tmp_path / "run"
+    runs = [_train(out, 10**9), _train(out, 10**9)]  # neither ends by itself
+    try:
+        deadline = time.monotonic() + 600  # a hang guard, not a speed check: one run must be refused
+        while all(r.poll() is None for r in runs):
+            assert time.monotonic() < deadline, "both runs train into one folder"
+            time.sleep(0.05)
+        loser = next(r for r in runs if r.returncode is not None)
+        winner = next(r for r in runs if r is not loser)
+        _, err = loser.communicate(timeout=60)
+        assert loser.returncode == 2 and "Traceback" not in err, err
+        assert f"{out} is in use by another train-dbox run: process {winner.pid} on " in err
+        assert winner.poll() is None  # the first run trains on
+        claim = json.loads((out / "claim.json").read_text())
+        assert claim["pid"] == winner.pid and "--steps 1000000000" in claim["command"]
+    finally:
+        for r in runs:
+            if r.poll() is None:
+                r.kill()
+            r.communicate(timeout=60)
+
+
+def test_a_folder_claimed_by_a_run_that_ended_is_refused_and_a_finished_run_resumes(tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    out.mkdir()
+    (out / "claim.json").write_text(json.dumps({"pid": 4242, "host": "h", "started": "T", "command": "c"}))
+    _, err = _train(out, 2).communicate(timeout=300)
+    assert "is claimed by an earlier train-dbox run (process 4242 on h, started T (c))" in err
+    assert "which is not running now and left no training state to resume" in err
+    assert f"delete {out / 'claim.json'} to start over" in err and "Traceback" not in err
+    (out / "claim.json").unlink()
+    first = _train(out, 2)
+    assert first.communicate(timeout=300) and first.returncode == 0
+    claim = json.loads((out / "claim.json").read_text())
+    assert claim["pid"] == first.pid and "resumed" not in claim
+    again = _train(out, 2)  # a new run into a finished run's folder: refused, as before
+    _, err = again.communicate(timeout=300)
+    assert again.returncode == 2 and "already holds a training run (last.pt)" in err
+    resumed = _train(out, 2, "--resume")  # done already: it only loads the state
+    assert resumed.communicate(timeout=300) and resumed.returncode == 0
+    claim = json.loads((out / "claim.json").read_text())
+    assert claim["pid"] == resumed.pid and claim["started"] != "" and "resumed" in claim
+
+
+# --- leaderboard site -o DIR removes only what it wrote -----------------------------------
+
+SITE = {
+    "index.html": b'<html><head><meta name="generator" content="odmd-bench leaderboard site"></head></html>',
+    "methods/a.html": b"a",
+    "methods/b.html": b"b",
+}
+
+
+def test_a_rebuilt_site_keeps_the_users_files_and_removes_only_its_own(tmp_path: Path) -> None:
+    out = tmp_path / "site"
+    assert write_site(SITE, out) == []
+    assert json.loads((out / MANIFEST).read_text())["files"] == sorted(SITE)
+    (out / "CNAME").write_text("bench.example.org\n")
+    (out / "notes").mkdir()
+    (out / "notes" / "todo.txt").write_text("mine")
+    (out / "methods" / "extra.html").write_text("mine too")
+    (out / "empty").mkdir()
+    (out / "link").symlink_to("CNAME")
+    (out / "methods" / "a.html").write_text("edited")  # a file the site wrote: the site's again
+    smaller = {k: v for k, v in SITE.items() if k != "methods/b.html"}  # an entry removed
+    kept = write_site(smaller, out)
+    assert kept == ["CNAME", "link", "methods/extra.html", "notes/todo.txt"]
+    assert (out / "CNAME").read_text() == "bench.example.org\n" and (
+        out / "notes" / "todo.txt"
+    ).read_text() == "mine"
+    assert (out / "methods" / "extra.html").read_text() == "mine too" and (out / "empty").is_dir()
+    assert os.readlink(out / "link") == "CNAME"
+    assert (out / "methods" / "a.html").read_bytes() == b"a" and not (out / "methods" / "b.html").exists()
+    assert json.loads((out / MANIFEST).read_text())["files"] == sorted(smaller)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["site"]  # no staging folder left
+
+
+def test_a_site_built_before_the_manifest_keeps_what_is_not_under_its_names(tmp_path: Path) -> None:
+    out = tmp_path / "site"
+    write_site(SITE, out)
+    (out / MANIFEST).unlink()  # as an earlier version wrote it
+    (out / "CNAME").write_text("x")
+    (out / "methods" / "old.html").write_text("a page of an earlier build")
+    assert write_site(SITE, out) == ["CNAME"]
+    assert not (out / "methods" / "old.html").exists() and (out / MANIFEST).is_file()
+
+
+def test_a_users_file_where_the_site_writes_is_refused_named_and_nothing_changes(tmp_path: Path) -> None:
+    out = tmp_path / "site"
+    write_site({"index.html": SITE["index.html"]}, out)
+    (out / "methods").write_text("a file where the site puts a folder")
+    (out / "CNAME").write_text("x")
+    with pytest.raises(UsageError, match="did not write where the site writes its own") as info:
+        write_site(SITE, out)
+    assert info.value.problems == ["methods"]
+    assert (out / "methods").read_text().startswith("a file") and not (out / "methods" / "a.html").exists()
+    (out / MANIFEST).write_text("{not json")
+    with pytest.raises(UsageError, match="is not a site manifest written by odmd-bench"):
+        write_site(SITE, out)
+
+
+def test_the_site_command_says_which_files_it_kept(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    import odmd_bench.leaderboard.site as site_package
+
+    monkeypatch.setattr(site_package, "build_site", lambda *a, **k: (SITE, []))
+    out = tmp_path / "site"
+    args = ["leaderboard", "site", "-o", str(out), "--root", str(tmp_path), "--no-plot"]
+    assert CliRunner().invoke(cli, args).exit_code == 0
+    (out / "CNAME").write_text("bench.example.org\n")
+    again = CliRunner().invoke(cli, args)
+    assert again.exit_code == 0, again.output
+    assert f"kept 1 file(s) in {out} that odmd-bench did not write: CNAME" in again.output
+    assert (out / "CNAME").read_text() == "bench.example.org\n"
