@@ -197,9 +197,12 @@ def site_command(
     files, said = build_site(
         folder, data_dir, original, figures=False if no_plot else None, source_url=source_url
     )
-    write_site(files, output)
+    kept = write_site(files, output)
     for line in said:
         click.echo(line)
+    if kept:
+        shown = ", ".join(kept[:10]) + (f", ... ({len(kept) - 10} more)" if len(kept) > 10 else "")
+        click.echo(f"kept {len(kept)} file(s) in {output} that odmd-bench did not write: {shown}")
     pages = sum(1 for name in files if name.endswith(".html"))
     click.echo(f"wrote {output}: {len(files)} files, {pages} pages (open {output / 'index.html'})")
 
