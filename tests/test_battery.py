@@ -226,3 +226,64 @@ def test_the_site_command_says_which_files_it_kept(tmp_path: Path, monkeypatch: 
     assert again.exit_code == 0, again.output
     assert f"kept 1 file(s) in {out} that odmd-bench did not write: CNAME" in again.output
     assert (out / "CNAME").read_text() == "bench.example.org\n"
+
+
+# --- every float option refuses NaN and infinities -----------------------------------------
+
+
+def _float_options() -> list[tuple[tuple[str, ...], str, int]]:
+    """(command path, option, nargs) of every option of every command that takes a float."""
+    import click
+
+    def takes_float(kind: click.ParamType) -> bool:
+        if isinstance(kind, click.Tuple):
+            return any(takes_float(t) for t in kind.types)
+        return isinstance(kind, click.types.FloatParamType)
+
+    found = []
+
+    def walk(command: click.Command, path: tuple[str, ...]) -> None:
+        for param in command.params:
+            if takes_float(param.type):
+                assert isinstance(param, click.Option), f"{path}: a float argument {param.name}: test it here"
+                found.append((path, param.opts[0], param.nargs))
+        if isinstance(command, click.Group):
+            ctx = click.Context(command)
+            for name in command.list_commands(ctx):
+                sub = command.get_command(ctx, name)
+                assert sub is not None
+                walk(sub, (*path, name))
+
+    walk(cli, ())
+    return found
+
+
+FLOAT_OPTIONS = _float_options()
+
+
+def test_the_float_options_are_found() -> None:
+    named = {(" ".join(path), opt) for path, opt, _ in FLOAT_OPTIONS}
+    assert {("compare", "--confidence"), ("evaluate", "--max-all"), ("predict", "--image-size")} <= named
+    assert {("predict", "--intrinsics"), ("train-dbox", "--lr"), ("train-dbox", "--dist-timeout")} <= named
+
+
+@pytest.mark.parametrize(("path", "option", "nargs"), FLOAT_OPTIONS, ids=lambda v: str(v))
+@pytest.mark.parametrize("bad", ["nan", "NaN", "inf", "-inf", "Infinity", "1e400"])
+def test_every_float_option_refuses_nan_and_infinities(
+    path: tuple[str, ...], option: str, nargs: int, bad: str
+) -> None:
+    for at in range(nargs):  # each place of an option taking several numbers
+        values = ["1"] * nargs
+        values[at] = bad
+        r = CliRunner().invoke(cli, [*path, option, *values])
+        assert r.exit_code == 2, (r.exit_code, r.output)
+        assert f"Invalid value for '{option}'" in r.output and "is not a finite number" in r.output, r.output
+        assert "Traceback" not in r.output
+
+
+def test_compare_confidence_nan_is_a_usage_error_not_an_internal_one(tmp_path: Path) -> None:
+    (tmp_path / "a.csv").write_text("x\n")
+    r = CliRunner().invoke(
+        cli, ["compare", str(tmp_path / "a.csv"), str(tmp_path / "a.csv"), "--confidence", "nan"]
+    )
+    assert r.exit_code == 2 and "internal error" not in r.output and "is not a finite number" in r.output

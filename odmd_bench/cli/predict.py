@@ -11,7 +11,7 @@ from typing import Any
 
 import click
 
-from odmd_bench.cli.options import given_options, method_options, same_file
+from odmd_bench.cli.options import FINITE_FLOAT, FiniteFloatRange, given_options, method_options, same_file
 from odmd_bench.errors import UsageError
 
 
@@ -55,7 +55,7 @@ def error_summary(truth: Any, depth: Any) -> str:
 @click.option(
     "--image-size",
     nargs=2,
-    type=click.FloatRange(min=0, min_open=True),
+    type=FiniteFloatRange(min=0, min_open=True),
     required=True,
     metavar="W H",
     help="Width and height in pixels of the images the boxes are in.",
@@ -63,7 +63,7 @@ def error_summary(truth: Any, depth: Any) -> str:
 @click.option(
     "--intrinsics",
     nargs=4,
-    type=float,
+    type=FINITE_FLOAT,
     default=None,
     metavar="FX FY CX CY",
     help="Camera intrinsics in pixels (same pixel frame as the boxes), for the calibrated methods "
