@@ -6,6 +6,7 @@ import gzip
 import io
 import json
 import os
+import signal
 import subprocess
 import sys
 import time
@@ -287,3 +288,124 @@ def test_compare_confidence_nan_is_a_usage_error_not_an_internal_one(tmp_path: P
         cli, ["compare", str(tmp_path / "a.csv"), str(tmp_path / "a.csv"), "--confidence", "nan"]
     )
     assert r.exit_code == 2 and "internal error" not in r.output and "is not a finite number" in r.output
+
+
+# --- a closed standard output and an early Ctrl-C end quietly ----------------------------
+
+
+def _entry(how: str) -> list[str]:
+    if how == "-m":
+        return [sys.executable, "-m", "odmd_bench"]
+    script = Path(sys.executable).parent / "odmd-bench"
+    if not script.is_file():
+        pytest.skip(f"no odmd-bench script beside {sys.executable}")
+    return [str(script)]
+
+
+@pytest.mark.parametrize("how", ["script", "-m"])
+@pytest.mark.parametrize("args", [["--version"], ["data-dir"], ["baseline", "--list"], ["info", "FILE"]])
+def test_a_closed_standard_output_ends_quietly_with_141(tmp_path: Path, how: str, args: list[str]) -> None:
+    from odmd_bench.cli.main import EXIT_BROKEN_PIPE
+    from odmd_bench.data.generator import generate
+    from odmd_bench.data.io import write_sets
+
+    f = tmp_path / "x.h5"
+    write_sets(f, {s: generate(3, rng=i) for i, s in enumerate(("normal", "camera", "object", "robot"))})
+    cmd = [*_entry(how), *(str(f) if a == "FILE" else a for a in args)]
+    done = subprocess.run(
+        ["bash", "-c", 'exec "$@" >&-', "-", *cmd], capture_output=True, text=True, check=False
+    )
+    assert done.returncode == EXIT_BROKEN_PIPE and done.stderr == "", done.stderr
+
+
+def test_a_command_with_standard_output_closed_still_does_its_work(tmp_path: Path) -> None:
+    out = tmp_path / "preds.csv"
+    cmd = [*_entry("-m"), "baseline", "box-ls", "--split", "val", "-o", str(out)]
+    cmd += ["--data-dir", str(tmp_path / "data")]
+    done = subprocess.run(
+        ["bash", "-c", 'exec "$@" >&-', "-", *cmd], capture_output=True, text=True, check=False
+    )
+    assert "Traceback" not in done.stderr, done.stderr
+    assert done.returncode in (0, 141) and out.is_file()  # 141 where it printed to standard output
+    closed_err = subprocess.run(
+        ["bash", "-c", 'exec "$@" 2>&-', "-", *_entry("-m"), "data-dir"], capture_output=True, text=True
+    )
+    assert closed_err.returncode == 0 and closed_err.stdout.strip()
+
+
+#: Imports at which a test process sends itself SIGINT (the sitecustomize below), so that
+#: each moment is hit every time: while the package imports (numpy, its modules), while the
+#: command line imports (click, its commands), and once the command runs (gates: evaluate's
+#: first import, before it reads its input). A Ctrl-C before that, while Python itself
+#: starts (its site module), is Python's: it may print "Fatal Python error".
+KICKS = [
+    "numpy",
+    "odmd_bench.data",
+    "odmd_bench.predict",
+    "click",
+    "odmd_bench.cli.evaluate",
+    "odmd_bench.evaluation.gates",
+]
+
+SITECUSTOMIZE = """
+import os, signal, sys
+class _Kick:
+    def find_spec(self, name, path=None, target=None):
+        if name == os.environ.get("ODMD_TEST_SIGINT_ON"):
+            sys.meta_path.remove(self)
+            open(os.environ["ODMD_TEST_SIGINT_SENT"], "w").close()
+            os.kill(os.getpid(), signal.SIGINT)
+        return None
+sys.meta_path.insert(0, _Kick())
+"""
+
+
+def _interrupted(cmd: list[str], env: dict[str, str]) -> tuple[int, str]:
+    """Run ``cmd``, which waits on its standard input (kept open: it never ends by itself)."""
+    proc = subprocess.Popen(
+        cmd, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env
+    )
+    try:
+        _, err = proc.communicate(timeout=300)  # a hang guard: a swallowed interrupt waits forever
+    finally:
+        proc.kill()
+    return proc.returncode, err
+
+
+@pytest.mark.parametrize("how", ["script", "-m"])
+@pytest.mark.parametrize("at", KICKS)
+def test_a_ctrl_c_while_the_command_starts_ends_quietly_with_130(tmp_path: Path, how: str, at: str) -> None:
+    (tmp_path / "sitecustomize.py").write_text(SITECUSTOMIZE)
+    sent = tmp_path / "sent"
+    env = {
+        **os.environ,
+        "PYTHONPATH": str(tmp_path),
+        "ODMD_TEST_SIGINT_ON": at,
+        "ODMD_TEST_SIGINT_SENT": str(sent),
+    }
+    code, err = _interrupted([*_entry(how), "evaluate", "-"], env)
+    assert sent.exists()  # the signal came at that import
+    assert code == 130 and "Traceback" not in err and "Exception ignored" not in err, (code, err)
+    assert err.strip() in ("interrupted", "interrupted; no partial file was left behind"), err
+
+
+def test_an_interrupt_that_something_swallows_still_ends_the_command_with_130(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import odmd_bench.cli.main as cli_main
+
+    def swallowing(**kwargs: object) -> None:
+        try:
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(5)  # the handler runs here
+        except BaseException:  # as a careless cleanup does  # noqa: BLE001, S110
+            pass
+
+    monkeypatch.setattr(cli_main, "_interrupted", False)
+    monkeypatch.setattr(cli_main.cli, "main", swallowing)
+    try:
+        with pytest.raises(SystemExit) as done:
+            cli_main.main()
+    finally:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+    assert done.value.code == 130 and capsys.readouterr().err == "interrupted\n"
