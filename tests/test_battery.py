@@ -12,6 +12,7 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 from click.testing import CliRunner
 
@@ -409,3 +410,78 @@ def test_an_interrupt_that_something_swallows_still_ends_the_command_with_130(
     finally:
         signal.signal(signal.SIGINT, signal.default_int_handler)
     assert done.value.code == 130 and capsys.readouterr().err == "interrupted\n"
+
+
+# --- compare's gate lines say what the verdict is, once per gated set --------------------
+
+
+@pytest.fixture()
+def paper_like(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    import odmd_bench
+    from odmd_bench.data.io import write_sets
+    from odmd_bench.data.registry import set_file
+
+    d = tmp_path / "data"
+    for k, split in enumerate(("val", "test")):
+        sets = {
+            s: odmd_bench.generate(40, rng=10 * k + i)
+            for i, s in enumerate(("normal", "camera", "object", "robot"))
+        }
+        write_sets(set_file("odmd-paper", split, d), sets)
+    monkeypatch.setenv("ODMD_BENCH_DATA", str(d))
+    return d
+
+
+def _scaled(tmp_path: Path, name: str, factor: float) -> Path:
+    import odmd_bench
+    from odmd_bench.evaluation.predictions import write_predictions
+
+    truth = {s: ex.depth for s, ex in odmd_bench.load_split("test", "odmd-paper").items()}
+    rng = np.random.default_rng(len(name))
+    path = tmp_path / name
+    write_predictions(
+        path, "test", {s: z * factor * (1 + rng.normal(0, 0.01, z.shape)) for s, z in truth.items()}
+    )
+    return path
+
+
+def _gate(a: Path, b: Path, *more: str) -> tuple[int, list[str]]:
+    r = CliRunner().invoke(
+        cli, ["compare", str(a), str(b), "--benchmark", "odmd-paper", "--fail-if-worse", *more]
+    )
+    return r.exit_code, [ln for ln in r.stderr.splitlines() if ln.startswith(("ok", "fail"))]  # not warnings
+
+
+def test_a_significantly_better_candidate_is_called_better(paper_like: Path, tmp_path: Path) -> None:
+    good, bad = _scaled(tmp_path, "good.csv", 1.0), _scaled(tmp_path, "bad.csv", 1.5)
+    code, lines = _gate(bad, good, "--sets", "normal,robot")
+    assert code == 0 and [ln.split(":")[0] + ":" + ln.split(":")[1] for ln in lines] == [
+        "ok: the candidate is significantly better on All",
+        "ok: the candidate is significantly better on normal",
+        "ok: the candidate is significantly better on robot",
+    ]
+    assert not any("not significantly worse" in ln for ln in lines)
+    code, lines = _gate(good, good)  # indistinguishable: not worse, and not called better
+    assert code == 0 and lines[0].startswith("ok: not significantly worse on All: A - B")
+
+
+@pytest.mark.parametrize(
+    ("a", "b", "code", "start"),
+    [
+        ("good", "bad", 1, "fail: the candidate is significantly worse"),
+        ("bad", "good", 0, "ok: the candidate is significantly better"),
+    ],
+)
+def test_one_gated_set_gives_one_line(
+    paper_like: Path, tmp_path: Path, a: str, b: str, code: int, start: str
+) -> None:
+    files = {"good": _scaled(tmp_path, "good.csv", 1.0), "bad": _scaled(tmp_path, "bad.csv", 1.5)}
+    got, lines = _gate(files[a], files[b], "--sets", "camera")
+    assert got == code and len(lines) == 1, lines
+    assert lines[0].startswith(f"{start} on camera (= All, the only set compared): A - B")
+
+
+def test_the_gate_line_gives_the_confidence_as_given(paper_like: Path, tmp_path: Path) -> None:
+    good = _scaled(tmp_path, "good.csv", 1.0)
+    _, lines = _gate(good, good, "--confidence", "0.999", "--resamples", "4000")
+    assert "99.9% interval" in lines[0]
