@@ -29,7 +29,7 @@ from conftest import add_entry
 from odmd_bench import DepthRangeError
 from odmd_bench import leaderboard as lb
 from odmd_bench.inputs.bounds import MAX_ABS_DEPTH, depth_problems
-from odmd_bench.leaderboard.rules import content_problems
+from odmd_bench.leaderboard.rules import REQUIRED_FIELDS, content_problems, show
 from odmd_bench.leaderboard.site import build_site, write_site
 from odmd_bench.leaderboard.site.pages import _link
 
@@ -230,6 +230,9 @@ def test_depth_problems_flags_nan_infinities_and_beyond_the_bound_of_either_sign
     assert depth_problems([1.0, float("nan")]).tolist() == [False, True]
     assert depth_problems(np.array([np.nan, 1.0], dtype=np.float32)).tolist() == [True, False]
     assert depth_problems(np.full((2, 2), np.nan)).all()
+    # read as float64 whatever it is given: an int64 whose absolute value overflows, None
+    assert depth_problems(np.array([np.iinfo(np.int64).min, 3])).tolist() == [True, False]
+    assert depth_problems(np.array([None, 2.0], dtype=object)).tolist() == [True, False]
 
 
 class _Nan:
@@ -345,12 +348,11 @@ def test_a_paper_link_over_http_or_https_or_none_is_taken(link: str) -> None:
 @pytest.mark.parametrize("link", BAD_LINKS)
 def test_a_paper_link_of_any_other_scheme_is_refused(link: str) -> None:
     problems = _paper_problems(link)
-    said = (
-        "must not hold line breaks or control characters"
-        if "\t" in link
-        else "is not an http(s) link, or 'none'"
-    )
-    assert len(problems) == 1 and problems[0].endswith(said), problems
+    if "\t" in link:
+        assert problems == ["field 'paper' must not hold line breaks or control characters"]
+    else:  # the message shows the link refused
+        assert problems == [f"paper {show(link)} is not an http(s) link, or 'none'"]
+        assert show(link) != show(None)
 
 
 @pytest.mark.parametrize("link", [k for k in BAD_LINKS if not k.startswith(("http://", "https://"))])
@@ -361,6 +363,35 @@ def test_the_site_links_nothing_but_http_and_https(link: str) -> None:
     for good in GOOD_LINKS:
         assert _link(good, None) == f'<a href="{html.escape(good)}" rel="noopener">{html.escape(good)}</a>'
     assert _link("none", None) == "none"
-    assert _link("docs/x.md", "https://github.com/o/r/blob/abc") == (
-        '<a href="https://github.com/o/r/blob/abc/docs/x.md" rel="noopener"><code>docs/x.md</code></a>'
-    )
+    for base in (
+        "https://github.com/o/r/blob/FIX",
+        "https://github.com/o/r/blob/FIX/",
+        "https://github.com/o/r/blob/FIX//",
+    ):
+        assert _link("docs/x.md", base) == (  # one slash between, only slashes stripped
+            '<a href="https://github.com/o/r/blob/FIX/docs/x.md" rel="noopener"><code>docs/x.md</code></a>'
+        )
+
+
+@pytest.mark.parametrize("field", ["date", "predictions", "sets_content_sha256", "paper"])
+def test_a_missing_field_is_named_once_and_its_own_rule_is_not_run_on_nothing(field: str) -> None:
+    meta = _meta()
+    del meta[field]
+    problems = content_problems(meta)  # no KeyError: each rule runs only on a field that is there
+    assert [p for p in problems if field in p] == [f"missing field {field!r}: {REQUIRED_FIELDS[field]}"]
+
+
+@pytest.mark.parametrize(
+    ("name", "said"),
+    [
+        ("../x.csv", "must be a file name in the entry folder"),
+        ("sub/x.csv", "must be a file name in the entry folder"),
+        (".hidden.csv", "must be a file name in the entry folder"),
+        ("x.txt", "must be a .csv or .csv.gz file"),
+    ],
+)
+def test_the_predictions_file_name_is_checked(name: str, said: str) -> None:
+    assert [p for p in content_problems(_meta(predictions=name)) if p.startswith("predictions")] == [
+        f"predictions {show(name)} {said}"
+    ]
+    assert [p for p in content_problems(_meta(predictions="p.csv.gz")) if p.startswith("predictions")] == []
