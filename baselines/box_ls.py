@@ -56,6 +56,10 @@ import odmd_bench
 #: Depth (metres) given to examples whose system cannot be solved, as the paper scores them.
 DEFAULT_FALLBACK_DEPTH = 0.0
 
+#: The method reads depth from the boxes' growth as the camera moves along its optical axis:
+#: ``odmd-bench predict`` gives no depth where it moved too little (``odmd_bench.predict``).
+NEEDS_FORWARD_MOTION = True
+
 #: Fallback reasons, in order of precedence.
 FALLBACKS: tuple[str, ...] = (
     "no_detection",

@@ -49,6 +49,7 @@ The output never holds NaN or infinity.
 from __future__ import annotations
 
 import numpy as np
+from odmd_bench_baselines import parallax
 from odmd_bench_baselines.parallax import Combine, Fill, check_combine, combine_halves, endpoint_boxes
 
 import odmd_bench
@@ -56,8 +57,15 @@ import odmd_bench
 #: Depth (metres) where the width solution is not finite, as the original release uses.
 DEFAULT_FALLBACK_DEPTH = 1.0
 
+#: The method reads depth from the boxes' growth as the camera moves along its optical axis:
+#: ``odmd-bench predict`` gives no depth where it moved too little (``odmd_bench.predict``).
+NEEDS_FORWARD_MOTION = True
+
 #: Fallback reasons, in order of precedence.
 FALLBACKS: tuple[str, ...] = ("no_detection", "non_finite_w", "non_finite_h", "non_finite")
+
+#: The options ``odmd-bench baseline`` and ``predict`` give it: parallax's (``combine``), declared once.
+OPTIONS = parallax.OPTIONS
 
 
 def predict_report(

@@ -86,6 +86,7 @@ from typing import Literal
 import numpy as np
 
 import odmd_bench
+from odmd_bench.methods import MethodOption
 
 #: Depth (metres) where the lateral solution is not finite, as the original release uses.
 DEFAULT_FALLBACK_DEPTH = 1.0
@@ -104,6 +105,18 @@ MIN_AXIS_TRAVEL = 1e-6
 
 Combine = Literal["mean", "lsq"]
 COMBINES: tuple[str, ...] = ("mean", "lsq")
+
+#: The options ``odmd-bench baseline`` and ``predict`` give it (see odmd_bench.methods).
+OPTIONS = (
+    MethodOption(
+        "combine",
+        str,
+        "mean",
+        "How the per-axis solutions are combined: mean (the paper) or lsq (least squares, "
+        "weighted by each axis's signal).",
+        choices=COMBINES,
+    ),
+)
 
 
 def check_combine(combine: str) -> None:

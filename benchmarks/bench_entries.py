@@ -11,6 +11,8 @@ Each entry's own command (``odmd-bench baseline NAME --benchmark B --split test 
 read from its ``entry.yaml``, and the method's ``run`` is timed on every set of the board's
 test split with exactly those options, as ``baseline`` calls it (the sets loaded before,
 the CSV not written): examples per second = examples / best time of the rounds. The
+timing is :class:`odmd_bench.leaderboard.speed.SpeedRun`'s, which ``odmd-bench leaderboard
+speed NAME ...`` uses for one method (a contributor's plug-in). The
 rounds are interleaved (each runs every entry once), so that a machine shared with other
 work slows every entry alike; ``extra_info`` holds each entry's ``examples_per_s``. ``parameters`` is the number of trained weights the
 command uses: a DBox network's parameters times the checkpoints it runs (four with
@@ -20,9 +22,7 @@ per-set selection); 0 for the methods without trained weights. ``-s`` prints the
 from __future__ import annotations
 
 import os
-import platform
 import shlex
-import time
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -30,25 +30,13 @@ from typing import Any
 from odmd_bench import load_split, methods
 from odmd_bench.cli.options import given_options
 from odmd_bench.leaderboard import discover, read_entry
+from odmd_bench.leaderboard.speed import ROUNDS, SpeedRun, cpu_model
 
 REPO = Path(__file__).resolve().parents[1]
-ROUNDS = 5
-MIN_TIMED_S = 0.2
 RELEASE = Path(os.environ.get("ODMD_ORIGINAL") or REPO.parent / "shared" / "odmd-original")
 #: an entry's command names the user's copy of the original release so
 RELEASE_PLACEHOLDER = "ODMD/"
 OWN = [f for f in discover(REPO / "leaderboard") if read_entry(f).meta.code.startswith("baselines/")]
-
-
-def cpu_model() -> str:
-    """The CPU's model name (``/proc/cpuinfo``), else what :mod:`platform` says."""
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.partition(":")[2].strip()
-    except OSError:
-        pass
-    return platform.processor() or platform.machine()
 
 
 def options(command: str) -> tuple[str, dict[str, str]]:
@@ -88,34 +76,14 @@ def trained_parameters(name: str, given: dict[str, str], sets: dict[str, Any]) -
 
 
 @dataclass
-class Run:
-    """One entry's command, ready to time: the method, its options, the board's sets."""
+class Run(SpeedRun):
+    """One entry's command, ready to time, with the trained parameters it runs.
 
-    key: str
-    method: Any
-    kwargs: dict[str, Any]
-    sets: dict[str, Any]
-    parameters: int
-    best: float = float("inf")
-    repeats: int = 1
+    The timing is :class:`~odmd_bench.leaderboard.speed.SpeedRun`'s (what ``odmd-bench
+    leaderboard speed`` times).
+    """
 
-    @property
-    def examples(self) -> int:
-        return sum(len(ex) for ex in self.sets.values())
-
-    def __call__(self) -> None:
-        for ex in self.sets.values():
-            self.method.run(ex, **self.kwargs)
-
-    def seconds(self) -> float:
-        """Seconds per run of the command, ``repeats`` runs timed together.
-
-        A fast method's one run takes milliseconds, too short to time alone on a busy machine.
-        """
-        start = time.perf_counter()
-        for _ in range(self.repeats):
-            self()
-        return (time.perf_counter() - start) / self.repeats
+    parameters: int = 0
 
 
 def _prepare(folder: Path) -> Run | None:
@@ -133,7 +101,7 @@ def _prepare(folder: Path) -> Run | None:
         mode=given.get("mode"),
     )
     sets = load_split(entry.split, entry.benchmark)
-    return Run(entry.key, method, kwargs, sets, trained_parameters(name, given, sets))
+    return Run(entry.key, method, kwargs, sets, parameters=trained_parameters(name, given, sets))
 
 
 def test_entries_speed(benchmark: Any) -> None:
@@ -145,11 +113,11 @@ def test_entries_speed(benchmark: Any) -> None:
     skipped = len(OWN) - len(runs)
 
     for run in runs:  # warm up, and repeat a fast command until a timing takes about 0.2 s
-        run.repeats = max(1, min(1000, round(MIN_TIMED_S / max(run.seconds(), 1e-6))))
+        run.calibrate()
 
     def one_round() -> None:
         for run in runs:
-            run.best = min(run.best, run.seconds())
+            run.round()
 
     benchmark.pedantic(one_round, rounds=ROUNDS, iterations=1, warmup_rounds=1)
     cpu = cpu_model()

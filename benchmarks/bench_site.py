@@ -7,7 +7,7 @@ Run with the boards' data in place (``odmd-bench leaderboard check`` builds it):
     .venv/bin/pytest benchmarks/bench_site.py --benchmark-only -p no:randomly -s
 
 ``build_site`` does everything ``odmd-bench leaderboard site`` does but write the files:
-read leaderboard.json, re-score every entry, the paired comparisons, the figures, the pages.
+build the board from the entries (every entry re-scored), the paired comparisons, the figures, the pages.
 The index's size is printed (``index_bytes`` in ``extra_info``) with and without figures.
 """
 

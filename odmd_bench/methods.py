@@ -19,16 +19,35 @@ missing one is a usage error naming the extra that installs it
 (:func:`odmd_bench.extras.missing_module_error`).
 
 Options (``weights=``, ``mode=``, ...) reach a method only if both its functions take
-that keyword (:meth:`Method.accepts`).
+that keyword (:meth:`Method.accepts`). The options a user may give on the command line
+(``odmd-bench baseline NAME --mode scale``, ``odmd-bench predict``) and record in a
+leaderboard entry are those the module declares in ``OPTIONS``, a sequence of
+:class:`MethodOption` (name, type, default, help, choices)::
+
+    from odmd_bench.methods import MethodOption
+
+    OPTIONS = (MethodOption("scale", float, 1.0, "Multiply every depth by this."),)
+
+    def predict_report(examples, scale=1.0): ...
+
+A declaration is checked when the method is loaded (each name taken by both functions,
+its default theirs); :meth:`Method.values` checks and converts given values against it,
+and :func:`format_command` / :func:`parse_command` write and read the
+``odmd-bench baseline NAME --option VALUE ...`` command that records them.
 """
 
 from __future__ import annotations
 
 import inspect
+import keyword
+import math
+import os
+import shlex
 import traceback
-from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
 from importlib import metadata
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -42,6 +61,106 @@ from odmd_bench.inputs.problems import SHOWN
 #: The entry-point group methods are registered under.
 GROUP = "odmd_bench.methods"
 
+#: The types an option may have; a :class:`~pathlib.Path` is a file (on the command line,
+#: one that exists).
+OPTION_TYPES: tuple[type, ...] = (str, int, float, bool, Path)
+
+_TRUE = ("true", "yes", "1")
+_FALSE = ("false", "no", "0")
+
+
+@dataclass(frozen=True)
+class MethodOption:
+    """An option a method declares (its module's ``OPTIONS``), given as ``--NAME VALUE``.
+
+    Attributes:
+        name: the keyword both ``predict`` and ``predict_report`` take
+            (``weights_sha256``); on the command line ``--weights-sha256``.
+        type: one of :data:`OPTION_TYPES`: ``str``, ``int``, ``float``, ``bool``
+            (written ``true`` or ``false``) or :class:`pathlib.Path` (a file).
+        default: what the method uses when the option is not given, the same as its
+            functions' default; ``None`` where the method decides (``help`` says how).
+        help: one or two sentences for ``--help`` and ``--list``.
+        choices: the values it accepts, where they are a fixed few (``str`` only).
+        metavar: how ``--help`` names the value (default: the choices, or the type).
+
+    Example:
+        >>> MethodOption("mode", str, "full", "Which model.", choices=("full", "scale")).flag
+        '--mode'
+    """
+
+    name: str
+    type: type = str
+    default: Any = None
+    help: str = ""
+    choices: tuple[str, ...] = field(default=())
+    metavar: str | None = None
+
+    @property
+    def flag(self) -> str:
+        """How the command line spells it: ``--weights-sha256``."""
+        return "--" + self.name.replace("_", "-")
+
+    def convert(self, value: object) -> Any:
+        """``value`` (as given: text from a command line or YAML, or the type itself) as the type.
+
+        Raises:
+            ValueError: a value that is not of the type or not one of the choices, in words.
+        """
+        t = self.type
+        if t is bool:
+            if isinstance(value, bool):
+                out: Any = value
+            elif isinstance(value, str) and value.lower() in (*_TRUE, *_FALSE):
+                out = value.lower() in _TRUE
+            else:
+                raise ValueError(f"{value!r} is not true or false")
+        elif t is int:
+            if isinstance(value, bool) or not isinstance(value, int | str):
+                raise ValueError(f"{value!r} is not a whole number")
+            try:
+                out = int(value)
+            except ValueError:
+                raise ValueError(f"{value!r} is not a whole number") from None
+        elif t is float:
+            if isinstance(value, bool) or not isinstance(value, int | float | str):
+                raise ValueError(f"{value!r} is not a number")
+            try:
+                out = float(value)
+            except ValueError:
+                raise ValueError(f"{value!r} is not a number") from None
+            if not math.isfinite(out):
+                raise ValueError(f"{value!r} is not a finite number")
+        elif t is Path:
+            if not isinstance(value, str | os.PathLike) or not str(value):
+                raise ValueError(f"{value!r} is not a file path")
+            out = Path(value)
+        else:
+            if not isinstance(value, str):
+                raise ValueError(f"{value!r} is not text")
+            out = value
+        if self.choices and out not in self.choices:
+            raise ValueError(f"{value!r} is not one of {', '.join(self.choices)}")
+        return out
+
+    def describe(self) -> str:
+        """One line for ``--list``: ``--mode full|scale (default full): help``."""
+        what = self.metavar or ("|".join(self.choices) if self.choices else _TYPE_NAMES[self.type])
+        default = "" if self.default is None else f" (default {format_value(self.default)})"
+        return f"{self.flag} {what}{default}: {self.help}".rstrip(": ")
+
+
+_TYPE_NAMES: dict[type, str] = {str: "TEXT", int: "INTEGER", float: "FLOAT", bool: "true|false", Path: "FILE"}
+
+
+def format_value(value: object) -> str:
+    """An option's value as the command line writes it (``true``, ``0.5``, a path)."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, float):
+        return repr(value)
+    return str(value)
+
 
 @dataclass(frozen=True)
 class Method:
@@ -53,6 +172,7 @@ class Method:
         source: the distribution that registers it, with its version.
         predict: ``predict(examples, **options) -> depths``.
         predict_report: ``predict_report(examples, **options) -> (depths, counts)``.
+        options: the options its module declares (``OPTIONS``), in their order.
     """
 
     name: str
@@ -60,6 +180,55 @@ class Method:
     source: str
     predict: Callable[..., Any]
     predict_report: Callable[..., Any]
+    options: tuple[MethodOption, ...] = ()
+
+    def option(self, name: str) -> MethodOption | None:
+        """The declared option ``name`` (a keyword, ``weights_sha256``), or ``None``."""
+        return next((o for o in self.options if o.name == name), None)
+
+    def values(
+        self, given: Mapping[str, object], spell: Callable[[str], str] | None = None
+    ) -> dict[str, Any]:
+        """``given`` checked against the declared options and converted to their types.
+
+        What an entry records (its ``options``) or a command line gives is text or a
+        YAML scalar; this is what :meth:`run` is then given.
+
+        Args:
+            given: option name (keyword) -> value.
+            spell: how an option is named in a message (default: its ``--flag``).
+
+        Returns:
+            The values by name, in the order of the declaration.
+
+        Raises:
+            UsageError: every option that is not declared, and every value that is not
+                of its type or not one of its choices (named), at once.
+
+        Example:
+            >>> load("robust").values({"mode": "scale"})
+            {'mode': 'scale'}
+        """
+        name_of = spell or (lambda k: "--" + k.replace("_", "-"))
+        problems = []
+        declared = ", ".join(o.flag for o in self.options) or "none"
+        for k in given:
+            if self.option(k) is None:
+                problems.append(
+                    f"{name_of(k)}: method {self.name!r} declares no such option (it declares: {declared})"
+                )
+        out = {}
+        for o in self.options:
+            if o.name in given:
+                try:
+                    out[o.name] = o.convert(given[o.name])
+                except ValueError as e:
+                    problems.append(f"{name_of(o.name)}: {e}")
+        if len(problems) == 1:
+            raise UsageError(problems[0])
+        if problems:
+            raise UsageError(f"options that method {self.name!r} cannot take", problems)
+        return out
 
     def accepts(self, keyword: str) -> bool:
         """Whether ``predict`` and ``predict_report`` both take ``keyword`` by name."""
@@ -194,7 +363,150 @@ def load(name: str) -> Method:
             f"method {name!r} ({ep.value}, from {_source(ep)}) is not usable: it has no "
             + " and no ".join(f"{f}()" for f in missing)
         )
-    return Method(name, ep.value, _source(ep), obj.predict, obj.predict_report)
+    declared = getattr(obj, "OPTIONS", ())
+    functions = (obj.predict, obj.predict_report)
+    problems = declaration_problems(declared, functions)
+    if problems:
+        raise UsageError(
+            f"method {name!r} ({ep.value}, from {_source(ep)}) is not usable: its OPTIONS", problems
+        )
+    return Method(name, ep.value, _source(ep), obj.predict, obj.predict_report, tuple(declared))
+
+
+def declaration_problems(declared: object, functions: Sequence[Callable[..., Any]]) -> list[str]:
+    """What is wrong with a method's ``OPTIONS`` for its ``functions`` (empty: nothing).
+
+    Each must be a :class:`MethodOption` with a unique name that is a Python keyword
+    argument, a type of :data:`OPTION_TYPES`, choices only for ``str`` (its default one of
+    them), a default of its type; both functions must take it, and where a function
+    gives it a default, the declared default must be that one (so that ``--help`` tells
+    the truth).
+    """
+    if isinstance(declared, str | bytes) or not isinstance(declared, Sequence):
+        return [f"OPTIONS is a {type(declared).__name__}, not a sequence of odmd_bench.methods.MethodOption"]
+    problems = []
+    seen: set[str] = set()
+    for i, o in enumerate(declared):
+        if not isinstance(o, MethodOption):
+            problems.append(f"OPTIONS[{i}] is a {type(o).__name__}, not an odmd_bench.methods.MethodOption")
+            continue
+        where = f"option {o.name!r}"
+        if not isinstance(o.name, str) or not o.name.isidentifier() or keyword.iskeyword(o.name):
+            problems.append(f"{where}: its name is not a Python keyword argument")
+            continue
+        if o.name in seen:
+            problems.append(f"{where} is declared twice")
+        seen.add(o.name)
+        if o.type not in OPTION_TYPES:
+            problems.append(f"{where}: type {o.type!r} is not one of str, int, float, bool, pathlib.Path")
+            continue
+        if o.choices and (o.type is not str or not all(isinstance(c, str) for c in o.choices)):
+            problems.append(f"{where}: choices are for a str option, and are str")
+        elif o.default is not None:
+            try:
+                if o.convert(o.default) != o.default or type(o.default) is not o.type:
+                    raise ValueError(f"{o.default!r} is not a {o.type.__name__}")
+            except ValueError as e:
+                problems.append(f"{where}: its default {e}")
+        for f in dict.fromkeys(functions):  # predict may be predict_report itself
+            fname = getattr(f, "__name__", "its function")
+            if not _takes(f, o.name):
+                problems.append(f"{where}: {fname}() does not take it")
+                continue
+            p = _parameter(f, o.name)
+            if p is not None and p.default is not p.empty and not _same(p.default, o.default):
+                problems.append(f"{where}: its default {o.default!r} is not {fname}()'s, {p.default!r}")
+    return problems
+
+
+def format_command(
+    name: str,
+    options: Mapping[str, object],
+    benchmark: str | None = None,
+    split: str | None = None,
+    output: str | None = None,
+) -> str:
+    """The ``odmd-bench baseline NAME --option VALUE ...`` command that runs a method.
+
+    What a leaderboard entry records as its ``command``; the inverse of
+    :func:`parse_command`. Options (keywords, ``weights_sha256``) come in the order
+    given, then ``--benchmark``, ``--split`` and ``-o`` where given.
+
+    Example:
+        >>> format_command("dbox", {"config": "p-z", "selection": "per-set"}, "odmd-v1", "test", "predictions.csv")
+        'odmd-bench baseline dbox --config p-z --selection per-set --benchmark odmd-v1 --split test -o predictions.csv'
+    """
+    words = ["odmd-bench", "baseline", name]
+    for k, v in options.items():
+        words += ["--" + k.replace("_", "-"), format_value(v)]
+    for flag, value in (("--benchmark", benchmark), ("--split", split), ("-o", output)):
+        if value is not None:
+            words += [flag, value]
+    return shlex.join(words)
+
+
+#: ``odmd-bench baseline``'s own options that take a value (not the method's).
+BASELINE_OPTIONS: tuple[str, ...] = ("--benchmark", "--split", "-o", "--output", "--data-dir")
+
+
+def parse_command(command: str) -> tuple[str, dict[str, str], dict[str, str]]:
+    """The method, its options and the command's own options of an ``odmd-bench baseline NAME ...``.
+
+    The inverse of :func:`format_command`, for a command as an entry records it: a note
+    in parentheses at its end is dropped; options are written ``--opt VALUE`` or
+    ``--opt=VALUE``. Nothing is loaded: :meth:`Method.values` checks the options.
+
+    Returns:
+        ``(NAME, {option keyword: value}, {own option: value})``, e.g.
+        ``("dbox", {"weights_sha256": "ab.."}, {"--benchmark": "odmd-v1"})``.
+
+    Raises:
+        ValueError: what makes it not such a command, in words.
+
+    Example:
+        >>> parse_command("odmd-bench baseline robust --mode scale --split test -o p.csv")
+        ('robust', {'mode': 'scale'}, {'--split': 'test', '-o': 'p.csv'})
+    """
+    try:
+        words = shlex.split(command)
+    except ValueError as e:
+        raise ValueError(f"the command cannot be read as words ({e})") from None
+    for i, w in enumerate(words):
+        if w.startswith("("):
+            words = words[:i]
+            break
+    if words[:2] != ["odmd-bench", "baseline"]:
+        shown = " ".join(words[:2]) or "nothing"
+        raise ValueError(f"the command is not `odmd-bench baseline NAME ...` (it starts with {shown!r})")
+    names: list[str] = []
+    options: dict[str, str] = {}
+    own: dict[str, str] = {}
+    rest = words[2:]
+    i = 0
+    while i < len(rest):
+        word = rest[i]
+        i += 1
+        if not word.startswith("-") or word == "-":
+            names.append(word)
+            continue
+        flag, eq, value = word.partition("=")
+        if not eq:
+            if i >= len(rest):
+                raise ValueError(f"the command gives {flag} no value")
+            value = rest[i]
+            i += 1
+        if flag in BASELINE_OPTIONS:
+            target, key = own, flag
+        elif flag.startswith("--") and flag[2:].replace("-", "_").isidentifier():
+            target, key = options, flag[2:].replace("-", "_")
+        else:
+            raise ValueError(f"the command has an option that is not --NAME: {flag}")
+        if key in target:
+            raise ValueError(f"the command gives {flag} twice")
+        target[key] = value
+    if len(names) != 1:
+        raise ValueError(f"the command names {len(names)} methods; `odmd-bench baseline` takes one")
+    return names[0], options, own
 
 
 def accepting(keyword: str) -> list[str]:
@@ -210,7 +522,10 @@ def accepting(keyword: str) -> list[str]:
 
 
 def check_options(method: Method, options: Mapping[str, Any], spell: Callable[[str], str] = str) -> None:
-    """Refuse every option ``method`` does not take, naming the methods that take each.
+    """Refuse every option ``method`` does not declare, naming the methods that declare each.
+
+    The command line's check: an option is given to a method on the command line only
+    where the method declares it (:attr:`Method.options`).
 
     Args:
         method: the method to run.
@@ -221,15 +536,52 @@ def check_options(method: Method, options: Mapping[str, Any], spell: Callable[[s
         UsageError: one problem per refused option.
     """
     problems = []
-    for keyword in options:
-        if not method.accepts(keyword):
-            taking = accepting(keyword)
+    for name in options:
+        if method.option(name) is None:
+            taking = declaring(name)
             who = f"{', '.join(taking)} only" if taking else "no registered method"
-            problems.append(f"{spell(keyword)} applies to {who}, not to {method.name!r}")
+            problems.append(f"{spell(name)} applies to {who}, not to {method.name!r}")
     if len(problems) == 1:
         raise UsageError(problems[0])
     if problems:
         raise UsageError(f"options that {method.name!r} does not take", problems)
+
+
+def recorded_options(
+    command: str, options: Mapping[str, object] | None = None
+) -> tuple[str, dict[str, object]]:
+    """The method and the option values a leaderboard entry records (its ``command``, its ``options``).
+
+    An entry that records ``options`` (option keyword -> a YAML scalar) has them; one
+    that does not (the entries made before the field) has those of its command. Where
+    both are recorded they must agree: the command is what a reader re-runs. Nothing is
+    loaded; :meth:`Method.values` checks and converts the values for ``run``.
+
+    Returns:
+        ``(NAME, {option keyword: value})``.
+
+    Raises:
+        ValueError: the command is not an ``odmd-bench baseline NAME ...`` one, or it
+            gives other options or values than ``options``, in words.
+
+    Example:
+        >>> recorded_options("odmd-bench baseline robust --mode scale --split test", {"mode": "scale"})
+        ('robust', {'mode': 'scale'})
+    """
+    name, given, _own = parse_command(command)
+    if options is None:
+        return name, dict(given)
+    written = {k: format_value(v) for k, v in options.items()}
+    if written != given:
+        differ = sorted(k for k in {*written, *given} if written.get(k) != given.get(k))
+        raise ValueError(
+            "its options and its command disagree on "
+            + ", ".join(
+                f"{k} (options: {written.get(k, 'not given')}, command: {given.get(k, 'not given')})"
+                for k in differ
+            )
+        )
+    return name, dict(options)
 
 
 def _entry_points() -> list[metadata.EntryPoint]:
@@ -255,6 +607,21 @@ def _missing(error: ModuleNotFoundError, name: str, target: str = "") -> Excepti
     return error
 
 
+def _same(a: object, b: object) -> bool:
+    """``a == b`` as one truth (an array's elementwise answer, or an error, is ``False``)."""
+    try:
+        return bool(a == b)
+    except Exception:  # an array of several values, or a comparison that raises
+        return False
+
+
+def _parameter(function: Callable[..., Any], keyword: str) -> inspect.Parameter | None:
+    try:
+        return inspect.signature(function).parameters.get(keyword)
+    except (TypeError, ValueError):
+        return None
+
+
 def _takes(function: Callable[..., Any], keyword: str) -> bool:
     try:
         parameters = inspect.signature(function).parameters.values()
@@ -266,4 +633,31 @@ def _takes(function: Callable[..., Any], keyword: str) -> bool:
     )
 
 
-__all__ = ["GROUP", "Method", "accepting", "check_options", "load", "names"]
+def declaring(name: str) -> list[str]:
+    """The registered methods that declare option ``name`` (a keyword; those that load), sorted."""
+    out = []
+    for n in names():
+        try:
+            if load(n).option(name) is not None:
+                out.append(n)
+        except UsageError:
+            continue
+    return out
+
+
+__all__ = [
+    "GROUP",
+    "OPTION_TYPES",
+    "Method",
+    "MethodOption",
+    "accepting",
+    "check_options",
+    "declaration_problems",
+    "declaring",
+    "format_command",
+    "format_value",
+    "load",
+    "names",
+    "parse_command",
+    "recorded_options",
+]

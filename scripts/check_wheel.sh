@@ -192,6 +192,10 @@ if [ -n "$original" ]; then
     # CI's leaderboard gate: every entry re-scored from its committed predictions (a line per board).
     run base leaderboard check --root "$repo/leaderboard" --original "$original"
     grep -v "up to date" "$work/out" | sed 's/^/    /'
+    # The core install builds the views too (not committed): the plot is skipped, and said.
+    run base leaderboard build --root "$repo/leaderboard" --original "$original" -o "$work/views"
+    grep -q "skipped the plot" "$work/out" && [ -s "$work/views/leaderboard.json" ] \
+        || { cat "$work/out" >&2; fail "[base] leaderboard build did not write the views without the plot"; }
     # The recorded fresh-seed audits re-run (they run DBox, so in the venv with torch): a
     # committed audit that a re-run does not give fails.
     run full leaderboard check --audits --root "$repo/leaderboard" --original "$original"

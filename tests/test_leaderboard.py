@@ -6,6 +6,7 @@ import gzip
 import json
 import os
 import shutil
+import subprocess
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -16,7 +17,6 @@ import pytest
 import yaml
 from click.testing import CliRunner
 from conftest import add_entry as _add
-from conftest import recorded_plot
 
 from odmd_bench import leaderboard as lb
 from odmd_bench.cli.main import cli
@@ -72,29 +72,33 @@ def board(built_board: Path, tmp_path: Path) -> Path:
 
 
 def _check(root: Path, data_dir: Path) -> list[str]:
-    """``check`` of a board built without its plot (drawing it is slow); the CLI always requires it."""
-    return lb.check(root, data_dir, n_resamples=FAST, plot=False)
+    """``check`` of a board (with the tests' resamples)."""
+    return lb.check(root, data_dir, n_resamples=FAST)
 
 
-def _bump_camera_digit(path: Path, row_start: str) -> tuple[int, str, str]:
-    """Change the last digit of the Camera cell (4th) of the first row starting with ``row_start``.
-
-    Returns (line index, old cell, new cell).
-    """
-    lines = path.read_text().splitlines(keepends=True)
-    i = next(k for k, line in enumerate(lines) if line.startswith(row_start))
-    cells = lines[i].split(" | ")
-    old = cells[3]
-    cells[3] = old[:-1] + str((int(old[-1]) + 1) % 10)
-    lines[i] = " | ".join(cells)
-    path.write_text("".join(lines))
-    return i, old, cells[3]
+def _edit_meta(root: Path, entry: str, edit: Callable[[dict[str, Any]], object]) -> Path:
+    """Change the metadata of ``entries/ENTRY/odmd-v1-test`` in place; returns its file."""
+    path = root / lb.ENTRIES / entry / "odmd-v1-test" / "entry.yaml"
+    meta = yaml.safe_load(path.read_text())
+    edit(meta)
+    path.write_text(yaml.safe_dump(meta, sort_keys=False))
+    return path
 
 
 def _rows(data: dict[str, Any]) -> list[dict[str, Any]]:
     """The rows of the one board with entries in a leaderboard.json."""
     (bd,) = [b for b in data["boards"] if b["rows"]]
     return list(bd["rows"])
+
+
+def _deeper_first_row(text: str) -> str:
+    """A predictions CSV with its first depth a thousandth deeper (any column order)."""
+    lines = text.splitlines(keepends=True)
+    col = lines[0].rstrip("\n").split(",").index("depth")
+    cells = lines[1].rstrip("\n").split(",")
+    cells[col] = repr(float(cells[col]) * 1.001)
+    lines[1] = ",".join(cells) + "\n"
+    return "".join(lines)
 
 
 def _rewrite_gz(path: Path, edit: Callable[[str], str]) -> None:
@@ -213,13 +217,9 @@ def test_plain_csv_predictions_are_read_too(board: Path, v1_data_dir: Path) -> N
     (folder / "entry.yaml").unlink()
     (folder / "entry.json").write_text(json.dumps(meta | {"predictions": "predictions.csv"}))
     before = _rows(json.loads((board / lb.JSON_FILE).read_text()))[0]
-    assert _check(board, v1_data_dir) == [
-        "leaderboard.json: boards[odmd-v1 test].rows[box-ls].predictions_file: committed "
-        "'predictions.csv.gz', build writes 'predictions.csv'",
-        "leaderboard.json: boards[odmd-v1 test].rows[box-ls].metadata.predictions: committed "
-        "'predictions.csv.gz', build writes 'predictions.csv'",
-    ]
+    assert _check(board, v1_data_dir) == []  # the same content: the same SHA-256 and scores
     after = _rows(json.loads(lb.build(board, v1_data_dir, n_resamples=FAST).json_text))[0]
+    assert after["predictions_file"] == "predictions.csv"
     assert after["predictions_csv_sha256"] == before["predictions_csv_sha256"]
     assert after["sets"] == before["sets"]
 
@@ -233,14 +233,43 @@ def test_rescoring_matches_the_evaluator(board: Path, v1_data_dir: Path, v1_pred
     assert row["predictions_csv_sha256"] == direct.provenance["predictions_sha256"]
 
 
-def test_changing_one_digit_of_the_table_fails_check_precisely(board: Path, v1_data_dir: Path) -> None:
-    md = board / lb.MARKDOWN
-    i, old, new = _bump_camera_digit(md, "| 1 | [BOX-LS]")
-    problems = _check(board, v1_data_dir)
-    assert problems == [
-        f"LEADERBOARD.md line {i + 1}: table 'odmd-v1 test', row 'BOX-LS', column 'Camera': "
-        f"committed {new!r}, build writes {old!r}"
+def test_add_records_the_predictions_sha256_and_the_scores(board: Path, v1_data_dir: Path) -> None:
+    row = _rows(json.loads((board / lb.JSON_FILE).read_text()))[0]
+    meta = yaml.safe_load((board / lb.ENTRIES / "box-ls" / "odmd-v1-test" / "entry.yaml").read_text())
+    assert meta["predictions_sha256"] == row["predictions_csv_sha256"]
+    assert meta["scores"] == {
+        **{s: m["percent_error"]["mean"] for s, m in row["sets"].items()},
+        "all": row["all"],
+    }
+    assert list(meta["scores"]) == ["normal", "camera", "object", "robot", "all"]
+
+
+def test_changing_one_recorded_score_fails_check_precisely(board: Path, v1_data_dir: Path) -> None:
+    recorded: dict[str, float] = {}
+
+    def bump(meta: dict[str, Any]) -> None:
+        recorded["old"] = meta["scores"]["camera"]
+        meta["scores"]["camera"] = round(recorded["old"] + 0.000001, 6)
+        recorded["new"] = meta["scores"]["camera"]
+
+    _edit_meta(board, "box-ls", bump)
+    assert _check(board, v1_data_dir) == [
+        f"entries/box-ls/odmd-v1-test/entry.yaml: scores.camera: recorded {recorded['new']!r}, "
+        f"re-scored {recorded['old']!r}"
     ]
+    report = lb.check_report(board, v1_data_dir, n_resamples=FAST)
+    assert report.invalid == [] and len(report.differences) == 1  # a difference: exit 1, not 2
+
+
+def test_a_recorded_score_must_be_one_of_the_boards_sets(board: Path, v1_data_dir: Path) -> None:
+    _edit_meta(board, "box-ls", lambda m: m["scores"].pop("robot"))
+    (problem,) = _check(board, v1_data_dir)
+    assert "scores lack robot; run `odmd-bench leaderboard add` again" in problem
+    _edit_meta(board, "box-ls", lambda m: m.pop("scores"))
+    (problem,) = _check(board, v1_data_dir)
+    assert problem.startswith(
+        "entry box-ls/odmd-v1-test: metadata is incomplete or wrong: missing field 'scores'"
+    )
 
 
 def test_changing_one_prediction_fails_check_precisely(board: Path, v1_data_dir: Path) -> None:
@@ -255,12 +284,15 @@ def test_changing_one_prediction_fails_check_precisely(board: Path, v1_data_dir:
 
     _rewrite_gz(gz, bump)
     problems = _check(board, v1_data_dir)
-    joined = "\n".join(problems)
-    assert (
-        "leaderboard.json: boards[odmd-v1 test].rows[expansion].predictions_csv_sha256: committed" in joined
-    )
-    assert "rows[expansion].sets.normal.percent_error.mean: committed 0.0, build writes" in joined
-    assert all(p.startswith(("leaderboard.json", "LEADERBOARD.md")) for p in problems)
+    where = "entries/expansion/odmd-v1-test/entry.yaml: "
+    assert [p.split(":")[1].strip() for p in problems] == [
+        "predictions_sha256",
+        "scores.normal",
+        "scores.all",
+    ]
+    assert all(p.startswith(where) for p in problems)
+    assert "(a changed prediction)" in problems[0]
+    assert problems[1].startswith(f"{where}scores.normal: recorded 0.0, re-scored ")
 
 
 def test_predictions_for_other_data_fail(board: Path, v1_data_dir: Path) -> None:
@@ -294,9 +326,11 @@ def test_incomplete_metadata_fails_check(board: Path, v1_data_dir: Path) -> None
     assert "missing field 'training_data'" in problems[0]
 
 
-def test_missing_generated_file_fails_check(board: Path, v1_data_dir: Path) -> None:
+def test_the_views_are_not_checked_they_are_derived(board: Path, v1_data_dir: Path) -> None:
+    """LEADERBOARD.md and leaderboard.json are build's output, not input: check never reads them."""
     (board / lb.JSON_FILE).unlink()
-    assert _check(board, v1_data_dir) == ["leaderboard.json is missing; run `odmd-bench leaderboard build`"]
+    (board / lb.MARKDOWN).write_text("anything\n")
+    assert _check(board, v1_data_dir) == []
 
 
 def test_add_refuses_an_existing_entry_and_bad_predictions(
@@ -401,21 +435,16 @@ def test_a_failed_write_leaves_every_file_of_the_board_as_it_was(
     assert not [p for p in board.iterdir() if p.name.endswith(".tmp")]
 
 
-def test_a_file_that_cannot_be_replaced_leaves_the_readme_and_the_plot_as_they_were(
-    board: Path, v1_data_dir: Path
-) -> None:
-    """The README block, the tables, the JSON and the plot are replaced together or not at all."""
+def test_a_file_that_cannot_be_replaced_leaves_the_plot_as_it_was(board: Path, v1_data_dir: Path) -> None:
+    """The tables, the JSON and the plot are replaced together or not at all."""
     pytest.importorskip("matplotlib")
     built = lb.build(board, v1_data_dir, n_resamples=FAST)
-    readme = board.parent / lb.README
-    readme.write_text(f"# project\n\n{lb.README_START}\nstale\n{lb.README_END}\n")
     (board / lb.PLOT).write_bytes(b"old plot")
     (board / lb.MARKDOWN).write_text("OLD\n")
     (board / lb.JSON_FILE).unlink()
     (board / lb.JSON_FILE).mkdir()  # a folder where the JSON belongs
     with pytest.raises(OSError, match="a folder stands where the file belongs"):
         lb.write(board, built)
-    assert "stale" in readme.read_text()
     assert (board / lb.PLOT).read_bytes() == b"old plot" and (board / lb.MARKDOWN).read_text() == "OLD\n"
     assert not [p for p in (*board.iterdir(), *board.parent.iterdir()) if p.name.endswith(".tmp")]
 
@@ -429,9 +458,19 @@ def test_build_without_matplotlib_says_so(
     said = lb.write(board, lb.build(board, v1_data_dir, n_resamples=FAST))
     assert any("skipped the plot" in s and "odmd-bench[plot]" in s for s in said)
     assert not (board / lb.PLOT).exists()
+    # The core install runs add, build and check: the plot is not part of any gate.
+    monkeypatch.setattr(ranking, "RANK_RESAMPLES", FAST)
+    common = ["--root", str(board), "--data-dir", str(v1_data_dir)]
+    built = CliRunner().invoke(cli, ["leaderboard", "build", *common])
+    assert built.exit_code == 0 and "skipped the plot" in built.output
+    checked = CliRunner().invoke(cli, ["leaderboard", "check", *common])
+    assert checked.exit_code == 0, checked.output
+    assert "matplotlib" not in sys.modules or sys.modules["matplotlib"] is None
 
 
-def test_check_finds_a_plot_left_from_another_board(board: Path, v1_data_dir: Path) -> None:
+def test_a_plot_records_its_board_and_a_stale_one_is_not_left_beside_a_build_without_it(
+    board: Path, v1_data_dir: Path
+) -> None:
     pytest.importorskip("matplotlib")
     from odmd_bench.leaderboard.plot import plot_boards
 
@@ -439,36 +478,13 @@ def test_check_finds_a_plot_left_from_another_board(board: Path, v1_data_dir: Pa
     lb.write(board, built)
     png = board / lb.PLOT
     assert lb.plot_source(png) == lb.board_digest((board / lb.JSON_FILE).read_text(encoding="utf-8"))
-    assert lb.check(board, v1_data_dir, n_resamples=FAST) == []
-    # Drawn from another leaderboard.json: out of date.
+    # Built again without the plot: the plot of this board stays ...
+    assert not any("removed" in line for line in lb.write(board, built, plot=False))
+    assert png.is_file()
+    # ... one drawn from another board is removed (it would show other numbers beside the JSON).
     plot_boards(built.boards, png, source="0" * 64)
-    (problem,) = lb.check(board, v1_data_dir, n_resamples=FAST)
-    assert problem.startswith("leaderboard.png was drawn from another board") and "[plot]" in problem
-    # Building without the plot leaves it, and says it is stale.
     said = lb.write(board, built, plot=False)
-    assert any(s.startswith("warning: leaderboard.png was drawn from another board") for s in said)
-    # A plot that records nothing (drawn by hand, or by an older odmd-bench).
-    plot_boards(built.boards, png)
-    assert lb.plot_source(png) is None
-    assert [p.split(";")[0] for p in lb.check(board, v1_data_dir, n_resamples=FAST)] == [
-        "leaderboard.png does not record the board it was drawn from"
-    ]
-    png.write_bytes(b"not a png")
-    assert len(lb.check(board, v1_data_dir, n_resamples=FAST)) == 1
-    png.unlink()
-    os.mkfifo(png)  # read, it would wait for a writer forever
-    (problem,) = lb.check(board, v1_data_dir, n_resamples=FAST)
-    assert problem.startswith("leaderboard.png is not a regular file")
-    # No plot is a problem (the board is its tables, its JSON and its plot), unless not asked for.
-    png.unlink()
-    (problem,) = lb.check(board, v1_data_dir, n_resamples=FAST)
-    assert problem.startswith("leaderboard.png is missing; run `odmd-bench leaderboard build`")
-    assert lb.check(board, v1_data_dir, n_resamples=FAST, plot=False) == []
-    assert any(
-        s.startswith("warning: leaderboard.png is missing") for s in lb.write(board, built, plot=False)
-    )
-    lb.write(board, built)
-    assert lb.check(board, v1_data_dir, n_resamples=FAST) == []
+    assert f"removed {png}: it was drawn from another board" in said and not png.exists()
 
 
 def test_plot_source_reads_only_up_to_the_image_data(tmp_path: Path) -> None:
@@ -498,14 +514,11 @@ def test_plot_source_reads_only_up_to_the_image_data(tmp_path: Path) -> None:
 def test_cli_check_exits_1_on_a_difference_and_2_on_a_broken_entry_with_a_line_per_board(
     board: Path, v1_data_dir: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    """The gate (a committed table that differs from a fresh build) exits 1, bad input 2."""
+    """The gate (a recorded score or SHA-256 that differs from the re-scoring) exits 1, bad input 2."""
     monkeypatch.setattr(ranking, "RANK_RESAMPLES", FAST)
     runner = CliRunner()
     args = ["leaderboard", "check", "--root", str(board), "--data-dir", str(v1_data_dir)]
-    # The fixture built with FAST resamples, and the CLI's default is patched to match.
-    missing = runner.invoke(cli, args)  # the fixture draws no plot: the CLI requires one
-    assert missing.exit_code == 1 and "leaderboard.png is missing" in missing.output
-    recorded_plot(board)
+    (board / lb.JSON_FILE).unlink()  # the views are not needed (nor read)
     ok = runner.invoke(cli, args)
     assert ok.exit_code == 0, ok.output
     assert ok.stdout.startswith("leaderboard check passed: ")
@@ -513,12 +526,14 @@ def test_cli_check_exits_1_on_a_difference_and_2_on_a_broken_entry_with_a_line_p
     assert [line.split(":")[0] for line in progress] == [spec.key for spec in lb.BOARDS]
     assert "odmd-v1 test: 2 entries re-scored and ranked (" in ok.stderr
     assert "odmd-paper test: no entries" in progress
-    md = board / lb.MARKDOWN
-    md.write_text(md.read_text().replace("| 1 | [BOX-LS]", "| 2 | [BOX-LS]"))
+    _edit_meta(board, "box-ls", lambda m: m["scores"].update(all=m["scores"]["all"] + 1))
     bad = runner.invoke(cli, args)
     assert bad.exit_code == 1, bad.output
-    assert "fail: leaderboard check (" in bad.stderr and "1 difference from what build writes" in bad.stderr
-    assert "row 'BOX-LS', column 'Group': committed '2', build writes '1'" in bad.stderr
+    assert (
+        "fail: leaderboard check (" in bad.stderr
+        and "1 difference between what the entries record" in bad.stderr
+    )
+    assert "entries/box-ls/odmd-v1-test/entry.yaml: scores.all: recorded " in bad.stderr
     assert "error:" not in bad.stderr and bad.stdout == ""
     entry = board / lb.ENTRIES / "box-ls" / "odmd-v1-test" / "entry.yaml"
     meta = yaml.safe_load(entry.read_text())
@@ -531,13 +546,11 @@ def test_cli_check_exits_1_on_a_difference_and_2_on_a_broken_entry_with_a_line_p
 
 
 def test_check_report_tells_invalid_entries_from_differences(board: Path, v1_data_dir: Path) -> None:
-    # the fixture draws no plot (plot=False: not required here)
-    assert lb.check_report(board, v1_data_dir, n_resamples=FAST, plot=False) == lb.CheckReport([], [])
-    (board / lb.JSON_FILE).unlink()
-    report = lb.check_report(board, v1_data_dir, n_resamples=FAST, plot=False)
-    assert report.invalid == [] and report.differences == [
-        "leaderboard.json is missing; run `odmd-bench leaderboard build`"
-    ]
+    assert lb.check_report(board, v1_data_dir, n_resamples=FAST) == lb.CheckReport([], [])
+    _edit_meta(board, "expansion", lambda m: m.update(predictions_sha256="0" * 64))
+    report = lb.check_report(board, v1_data_dir, n_resamples=FAST)
+    assert report.invalid == [] and len(report.differences) == 1
+    assert report.differences[0].startswith("entries/expansion/odmd-v1-test/entry.yaml: predictions_sha256: ")
     gz = board / lb.ENTRIES / "box-ls" / "odmd-v1-test" / "predictions.csv.gz"
     _rewrite_gz(gz, lambda t: "".join(t.splitlines(keepends=True)[:-1]))
     lines: list[str] = []
@@ -547,14 +560,36 @@ def test_check_report_tells_invalid_entries_from_differences(board: Path, v1_dat
     assert lines[1].startswith("odmd-v1 test: 2 entries re-scored, 1 problem (")
 
 
-def test_cli_build_writes_the_files(board: Path, v1_data_dir: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+def test_cli_build_writes_the_files(
+    board: Path, v1_data_dir: Path, monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
     monkeypatch.setattr(ranking, "RANK_RESAMPLES", FAST)
-    (board / lb.MARKDOWN).unlink()
-    result = CliRunner().invoke(
-        cli, ["leaderboard", "build", "--root", str(board), "--data-dir", str(v1_data_dir), "--no-plot"]
-    )
+    common = ["--root", str(board), "--data-dir", str(v1_data_dir), "--no-plot"]
+    result = CliRunner().invoke(cli, ["leaderboard", "build", *common])
     assert result.exit_code == 0, result.output
-    assert "2 entries on 3 boards" in result.output and (board / lb.MARKDOWN).is_file()
+    out = lb.build_folder(board)
+    assert out == board / "build" and f"2 entries on {len(lb.BOARDS)} boards" in result.output
+    assert (out / lb.MARKDOWN).is_file() and (out / lb.JSON_FILE).is_file()
+    elsewhere = tmp_path / "views"
+    result = CliRunner().invoke(cli, ["leaderboard", "build", "-o", str(elsewhere), *common])
+    assert result.exit_code == 0, result.output
+    assert (elsewhere / lb.JSON_FILE).read_text() == (out / lb.JSON_FILE).read_text()
+
+
+def test_the_default_build_folder_is_ignored_by_git() -> None:
+    """What build writes by default never shows up as a change to commit."""
+    import subprocess
+
+    if not (REPO / ".git").exists():
+        pytest.skip("not a git checkout")
+    for name in (lb.MARKDOWN, lb.JSON_FILE, lb.PLOT):
+        for path in (f"leaderboard/{lb.BUILD}/{name}", f"leaderboard/{name}"):
+            done = subprocess.run(["git", "check-ignore", "-q", path], cwd=REPO, check=False)
+            assert done.returncode == 0, f"{path} is not ignored by git"
+    tracked = subprocess.run(
+        ["git", "ls-files", "leaderboard"], cwd=REPO, capture_output=True, text=True, check=True
+    ).stdout.split()
+    assert not [t for t in tracked if t.rsplit("/", 1)[-1] in (lb.MARKDOWN, lb.JSON_FILE, lb.PLOT)]
 
 
 # ----------------------------------------------------------------------------- the committed leaderboard
@@ -573,34 +608,43 @@ def both_data_dir(paper_data_dir: Path, v1_data_dir: Path, tmp_path_factory: pyt
     return data
 
 
-def test_committed_leaderboard_is_what_build_writes(both_data_dir: Path) -> None:
-    assert lb.check(REPO / "leaderboard", both_data_dir) == []
+def test_committed_leaderboard_passes_check(both_data_dir: Path) -> None:
+    assert lb.check_report(REPO / "leaderboard", both_data_dir) == lb.CheckReport([], [])
 
 
 def test_committed_leaderboard_reproduces_the_paper_box_ls() -> None:
-    data = json.loads((REPO / "leaderboard" / lb.JSON_FILE).read_text())
-    paper = next(b for b in data["boards"] if b["benchmark"] == "odmd-paper")
-    box = next(r for r in paper["rows"] if r["method"] == "box-ls")
-    means = [
-        round(box["sets"][s]["percent_error"]["mean"], 2) for s in ("normal", "camera", "object", "robot")
-    ]
+    meta = yaml.safe_load(
+        (REPO / "leaderboard" / lb.ENTRIES / "box-ls" / "odmd-paper-test" / "entry.yaml").read_text()
+    )
+    means = [round(meta["scores"][s], 2) for s in ("normal", "camera", "object", "robot")]
     assert means == [0.0, 4.47, 21.60, 21.23]
 
 
-def test_a_copy_of_the_committed_leaderboard_with_one_changed_digit_fails(
+def test_a_copy_of_the_committed_leaderboard_with_one_changed_number_or_prediction_fails(
     both_data_dir: Path, tmp_path: Path
 ) -> None:
     root = tmp_path / "leaderboard"
-    shutil.copytree(REPO / "leaderboard", root)
+    shutil.copytree(REPO / "leaderboard", root, ignore=shutil.ignore_patterns(lb.BUILD))
     # Entries name their code by repository path, resolved inside the repository: copy it.
     shutil.copytree(
         REPO / "baselines", tmp_path / "baselines", ignore=shutil.ignore_patterns("*.pt", "__pycache__")
     )
-    md = root / lb.MARKDOWN
-    md.write_text(md.read_text().replace("| **11.83** |", "| **11.84** |", 1))
-    problems = lb.check(root, both_data_dir)
-    assert (
-        len(problems) == 1 and "column 'All': committed '**11.84**', build writes '**11.83**'" in problems[0]
+    entry = root / lb.ENTRIES / "box-ls" / "odmd-paper-test" / "entry.yaml"
+    text = entry.read_text()
+    assert "  all: 11.825009\n" in text  # the committed number, as a reader sees it
+    entry.write_text(text.replace("  all: 11.825009\n", "  all: 11.835009\n"))
+    report = lb.check_report(root, both_data_dir)
+    assert report.invalid == [] and report.differences == [
+        "entries/box-ls/odmd-paper-test/entry.yaml: scores.all: recorded 11.835009, re-scored 11.825009"
+    ]
+    entry.write_text(text)
+    _rewrite_gz(
+        root / lb.ENTRIES / "robust" / "odmd-paper-test" / "predictions.csv.gz",  # not audited
+        _deeper_first_row,
+    )
+    report = lb.check_report(root, both_data_dir)
+    assert report.invalid == [] and report.differences[0].startswith(
+        "entries/robust/odmd-paper-test/entry.yaml: predictions_sha256: recorded "
     )
 
 
@@ -622,50 +666,41 @@ def test_cli_add_makes_an_entry_that_build_ranks(
         "--training-data",
         "none",
     ]
+    args += ["--training-kind", "none", "--selected-on", "nothing", "--no-test-labels"]
     args += [
-        "--command",
-        "odmd-bench baseline expansion",
+        "--baseline",
+        "expansion",
         "--benchmark",
         "odmd-v1",
         "--uncalibrated",
+        "--parameters",
+        "0",
         *common,
     ]
     added = runner.invoke(cli, args)
     assert added.exit_code == 0, added.output
     meta = yaml.safe_load((board / lb.ENTRIES / "exp2" / "odmd-v1-test" / "entry.yaml").read_text())
     assert meta["calibrated"] is False and meta["split"] == "test" and len(meta["sets_content_sha256"]) == 4
-    stale = runner.invoke(cli, ["leaderboard", "check", *common])
-    assert stale.exit_code == 1 and "build writes '| 2 | [Exp 2](entries/exp2/odmd-v1-test/)" in stale.output
-    assert runner.invoke(cli, ["leaderboard", "build", "--no-plot", *common]).exit_code == 0
-    recorded_plot(board)
+    assert (
+        meta["command"] == "odmd-bench baseline expansion --benchmark odmd-v1 --split test -o predictions.csv"
+    )
+    assert (meta["uses_test_labels"], meta["selected_on"], meta["training_kind"]) == (
+        False,
+        "nothing",
+        "none",
+    )
+    assert meta["parameters"] == 0 and "options" not in meta and "plugin" not in meta
+    # an entry PR is the entry folder: check passes at once, nothing else to regenerate
     assert runner.invoke(cli, ["leaderboard", "check", *common]).exit_code == 0
-
-
-def test_the_readme_summary_is_generated_and_checked(board: Path, v1_data_dir: Path) -> None:
-    """A README beside the folder with the two markers gets the summary; a changed digit fails."""
-    readme = board.parent / lb.README
-    readme.write_text(f"# Project\n\nintro\n\n{lb.README_START}\nstale\n{lb.README_END}\n\nafter\n")
-    assert any("stale" in p for p in _check(board, v1_data_dir))
-    said = lb.write(board, lb.build(board, v1_data_dir, n_resamples=FAST), plot=False)
-    assert any("README.md" in line for line in said)
-    text = readme.read_text()
-    assert text.startswith("# Project\n\nintro\n\n") and text.endswith(f"{lb.README_END}\n\nafter\n")
-    assert "### odmd-v1 test" in text and "| BOX-LS |" in text
-    assert _check(board, v1_data_dir) == []
-
-    i, old, new = _bump_camera_digit(readme, "| 1 | BOX-LS |")
-    assert _check(board, v1_data_dir) == [
-        f"README.md line {i + 1}: table 'odmd-v1 test (generator v1 + imported robot)', row 'BOX-LS', "
-        f"column 'Camera': committed {new!r}, build writes {old!r}"
-    ]
-
-
-def test_a_readme_without_the_markers_is_left_alone(board: Path, v1_data_dir: Path) -> None:
-    readme = board.parent / lb.README
-    readme.write_text("# Project\n")
-    lb.write(board, lb.build(board, v1_data_dir, n_resamples=FAST), plot=False)
-    assert readme.read_text() == "# Project\n"
-    assert _check(board, v1_data_dir) == []
+    built = runner.invoke(cli, ["leaderboard", "build", "--no-plot", *common])
+    assert built.exit_code == 0 and "3 entries on 3 boards" in built.output
+    # the honesty fields are required, and test labels are refused
+    missing = runner.invoke(cli, [a for a in args if a not in ("--no-test-labels",)] + ["--replace"])
+    assert missing.exit_code == 2 and "--uses-test-labels" in missing.output
+    used = runner.invoke(cli, [*args, "--uses-test-labels", "--replace"])
+    assert (
+        used.exit_code == 2 and "the board ranks only methods that never used the test labels" in used.output
+    )
 
 
 # ----------------------------------------------------------------------------- boards, hardening, frame
@@ -675,13 +710,13 @@ def test_every_board_is_shown_and_an_empty_one_says_so(board: Path, v1_data_dir:
     built = lb.build(board, v1_data_dir, n_resamples=FAST)
     assert [b.spec for b in built.boards] == list(lb.BOARDS)
     empty = [b for b in built.boards if not b.rows]
-    assert {b.benchmark for b in empty} == {"odmd-paper", "odms-detection"}
-    for text in (built.markdown, built.readme_block):
-        section = text[text.index("odms-detection test") :].split("#", 1)[0]
-        assert (
-            "\nNo entries yet. Add one with `odmd-bench leaderboard add PREDS.csv --benchmark odms-detection"
-            in section
-        )
+    assert {b.benchmark for b in empty} == {"odmd-paper", "odms-detection", "kitti-tracking"}
+    text = built.markdown
+    section = text[text.index("odms-detection test") :].split("#", 1)[0]
+    assert (
+        "\nNo entries yet. Add one with `odmd-bench leaderboard add PREDS.csv --benchmark odms-detection"
+        in section
+    )
     odms = next(b for b in json.loads(built.json_text)["boards"] if b["benchmark"] == "odms-detection")
     assert odms["rows"] == [] and odms["sets"] == ["normal", "perturb", "robot", "driving"]
     assert odms["data_version"] is None
@@ -690,7 +725,12 @@ def test_every_board_is_shown_and_an_empty_one_says_so(board: Path, v1_data_dir:
 def test_boards_match_the_registry() -> None:
     from odmd_bench.data.registry import BENCHMARKS
 
-    assert [b.key for b in lb.BOARDS] == ["odmd-paper test", "odmd-v1 test", "odms-detection test"]
+    assert [b.key for b in lb.BOARDS] == [
+        "odmd-paper test",
+        "odmd-v1 test",
+        "odms-detection test",
+        "kitti-tracking test",
+    ]
     for spec in lb.BOARDS:
         assert (
             spec.sets == BENCHMARKS[spec.benchmark].sets and spec.split in BENCHMARKS[spec.benchmark].splits
@@ -830,3 +870,137 @@ def test_check_reads_predictions_exactly_as_evaluate_does(board: Path, v1_data_d
         "entry box-ls/odmd-v1-test: predictions.csv.gz fails validation"
     )
     assert by_evaluate.value.problems[0] in problems[0]
+
+
+# ----------------------------------------------------------------------------- plug-ins, options, speed
+
+
+def test_add_keeps_a_plugins_plain_source_in_the_entry(
+    board: Path, v1_data_dir: Path, v1_preds: dict[str, Path], tmp_path: Path
+) -> None:
+    source = tmp_path / "src"
+    (source / "mine").mkdir(parents=True)
+    (source / "mine" / "__init__.py").write_text("")
+    (source / "mine" / "depth.py").write_text("def predict(examples):\n    return None\n")
+    (source / "mine" / "__pycache__").mkdir()
+    (source / "mine" / "__pycache__" / "depth.cpython-311.pyc").write_bytes(b"\0")  # a cache: left out
+    (source / ".git").mkdir()
+    (source / ".git" / "HEAD").write_text("ref")  # hidden: left out
+    nudged = _nudged(v1_preds["expansion"], tmp_path)
+    entry = _add(board, v1_data_dir, nudged, "mine", plugin_source=source, plugin_module="mine.depth")
+    assert entry.meta.plugin == {"source": "plugin", "module": "mine.depth"}
+    kept = sorted(p.relative_to(entry.folder).as_posix() for p in entry.folder.rglob("*") if p.is_file())
+    assert kept == ["entry.yaml", "plugin/mine/__init__.py", "plugin/mine/depth.py", "predictions.csv.gz"]
+    assert _check(board, v1_data_dir) == []
+    # a link or another kind of file is refused before anything is written
+    (source / "mine" / "weights.bin").write_bytes(b"\0")
+    (source / "mine" / "link.py").symlink_to(source / "mine" / "depth.py")
+    with pytest.raises(ValidationError) as info:
+        _add(
+            board, v1_data_dir, nudged, "mine", plugin_source=source, plugin_module="mine.depth", replace=True
+        )
+    assert info.value.problems == [
+        "mine/link.py is a symbolic link; copy the file itself",
+        "mine/weights.bin is not a .py file; a plug-in's source is plain Python files only",
+    ]
+    assert (entry.folder / "plugin" / "mine" / "depth.py").is_file()  # the entry as it was
+    # the source's module must be in it
+    (source / "mine" / "weights.bin").unlink()
+    (source / "mine" / "link.py").unlink()
+    with pytest.raises(ValidationError, match="has no module mine.other"):
+        _add(
+            board, v1_data_dir, nudged, "mine", plugin_source=source, plugin_module="mine.other", replace=True
+        )
+    # replaced by a source with fewer files: what the new source lacks goes
+    (source / "mine" / "__init__.py").unlink()
+    entry = _add(
+        board, v1_data_dir, nudged, "mine", plugin_source=source, plugin_module="mine.depth", replace=True
+    )
+    assert sorted(
+        p.relative_to(entry.folder / "plugin").as_posix() for p in (entry.folder / "plugin").rglob("*")
+    ) == [
+        "mine",
+        "mine/depth.py",
+    ]
+    # a pinned requirement instead: the old source folder goes with the replaced entry
+    entry = _add(board, v1_data_dir, nudged, "mine", requirement="mine-depth==2.0", replace=True)
+    assert entry.meta.plugin == {"requirement": "mine-depth==2.0"} and not (entry.folder / "plugin").exists()
+    with pytest.raises(ValidationError, match="must be pinned as NAME==VERSION"):
+        _add(board, v1_data_dir, nudged, "mine", requirement="mine-depth>=2", replace=True)
+
+
+def test_add_records_the_options_and_derives_the_command(
+    board: Path, v1_data_dir: Path, v1_preds: dict[str, Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from odmd_bench.leaderboard.add import parse_options
+
+    options = parse_options(["fill=all", "fallback-depth=2.5", "combine=lsq"])
+    assert options == {"fill": "all", "fallback_depth": 2.5, "combine": "lsq"}
+    with pytest.raises(ValidationError) as info:
+        parse_options(["fill", "a=1", "a=2", "Bad=x"])
+    assert info.value.problems == [
+        "option 'fill' is not NAME=VALUE",
+        "option 'a' is given twice",
+        "options: name 'Bad' must be lowercase letters, digits and '_' (the method's keyword)",
+    ]
+    nudged = _nudged(v1_preds["expansion"], tmp_path)
+    entry = _add(board, v1_data_dir, nudged, "exp-lsq", command=None, baseline="expansion", options=options)
+    assert entry.meta.options == options
+    assert entry.meta.command == (
+        "odmd-bench baseline expansion --fill all --fallback-depth 2.5 --combine lsq "
+        "--benchmark odmd-v1 --split test -o predictions.csv"
+    )
+    with pytest.raises(
+        ValidationError, match="give either the command that made the predictions or the baseline"
+    ):
+        _add(board, v1_data_dir, nudged, "exp-2", baseline="expansion")  # and the helper's command
+    monkeypatch.setattr(ranking, "RANK_RESAMPLES", FAST)
+    both = CliRunner().invoke(
+        cli, ["leaderboard", "add", str(nudged), "--command", "x", "--baseline", "y", "--method", "z"]
+    )
+    assert both.exit_code == 2
+
+
+def test_speed_is_measured_on_one_thread_and_recorded_by_add(
+    board: Path, v1_data_dir: Path, v1_preds: dict[str, Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from odmd_bench.leaderboard import speed
+
+    out = tmp_path / "speed.json"
+    args = ["leaderboard", "speed", "box-ls", "--benchmark", "odmd-v1", "--data-dir", str(v1_data_dir)]
+    # Without the thread variables the command runs itself again with them (a child process).
+    env = {k: v for k, v in os.environ.items() if k not in speed.THREAD_VARIABLES}
+    done = subprocess.run(
+        [sys.executable, "-m", "odmd_bench", *args, "-o", str(out)], env=env, capture_output=True, text=True
+    )
+    assert done.returncode == 0, done.stderr
+    measured = json.loads(out.read_text())
+    assert set(measured) == {"examples_per_second", "device", "command"}
+    assert measured["device"] == speed.cpu_model() and measured["examples_per_second"] > 1000
+    assert measured["command"] == "odmd-bench leaderboard speed box-ls --benchmark odmd-v1 --split test"
+    assert f"examples_per_second: {measured['examples_per_second']}" in done.stdout
+    assert speed.read_speed(out) == measured
+    # add records it as the entry's speed
+    entry = _add(board, v1_data_dir, v1_preds["box_ls"], "box-ls", replace=True, speed=measured, parameters=0)
+    assert entry.meta.speed == measured and entry.meta.parameters == 0
+    # a file that is not a speed is named as such
+    out.write_text(json.dumps({"examples_per_second": -1, "device": "x"}))
+    with pytest.raises(ValidationError) as info:
+        speed.read_speed(out)
+    assert info.value.problems == [
+        "speed: missing field 'command': the command that measured it (one line, at most 500 characters)",
+        "speed: examples_per_second must be a number > 0, got '-1'",
+    ]
+    assert [speed.rounded_rate(x) for x in (837123.4, 658.49, 12.345)] == [837000, 658, 12.3]
+
+
+def test_speed_refuses_an_option_the_method_does_not_take(
+    v1_data_dir: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from odmd_bench.leaderboard import speed
+
+    for v in speed.THREAD_VARIABLES:
+        monkeypatch.setenv(v, "1")
+    args = ["leaderboard", "speed", "box-ls", "--benchmark", "odmd-v1", "--option", "weights=x.pt"]
+    result = CliRunner().invoke(cli, [*args, "--data-dir", str(v1_data_dir)])
+    assert result.exit_code == 2 and "method 'box-ls' takes no option weights" in result.output

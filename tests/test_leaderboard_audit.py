@@ -402,11 +402,15 @@ def test_bad_input_exits_2_and_names_the_problem(tmp_path: Path) -> None:
 def test_the_committed_audit_matches_the_board() -> None:
     audits, problems = read_audits(BOARD)
     assert problems == [] and audits, "record an audit: odmd-bench leaderboard audit --seed N --record"
-    board = json.loads((BOARD / lb.JSON_FILE).read_text())
-    (bd,) = [b for b in board["boards"] if (b["benchmark"], b["split"]) == ("odmd-v1", "test")]
+    from odmd_bench.leaderboard.audit_files import shown
+
+    # the board's entries (the views are not committed: they are derived from these); a
+    # contributor's plug-in entry (one that records its `plugin`) may be not audited
+    entries = [lb.read_entry(f) for f in lb.discover(BOARD) if f.name == "odmd-v1-test"]
+    shipped = {e.method for e in entries if e.meta.plugin is None}
     audited = {e["method"] for a in audits for e in a["entries"]}
-    assert audited == {r["method"] for r in bd["rows"]}  # every entry of the board audited
-    assert all(r["audit"] is not None for r in bd["rows"])
+    assert shipped <= audited <= {e.method for e in entries}  # every shipped entry of the board audited
+    assert shipped <= set(shown(audits))
 
 
 @pytest.mark.slow

@@ -54,7 +54,12 @@ def _depths(path: Path) -> pd.Series:
 
 
 def test_every_board_has_entries_to_re_run() -> None:
-    assert {f.name for f in OWN_ENTRIES} == {"odmd-paper-test", "odmd-v1-test", "odms-detection-test"}
+    assert {f.name for f in OWN_ENTRIES} == {
+        "odmd-paper-test",
+        "odmd-v1-test",
+        "odms-detection-test",
+        "kitti-tracking-test",
+    }
 
 
 @pytest.mark.parametrize("folder", OWN_ENTRIES, ids=lambda p: f"{p.parent.name}/{p.name}")

@@ -45,6 +45,11 @@ def _good_meta(**over: object) -> dict[str, object]:
         "calibrated": True,
         "sets_content_sha256": {s: "a" * 64 for s in SETS},
         "predictions": "predictions.csv",
+        "predictions_sha256": "b" * 64,
+        "scores": {**{s: 1.5 for s in SETS}, "all": 1.5},
+        "uses_test_labels": False,
+        "selected_on": "val",
+        "training_kind": "generator",
     }
     return meta | over
 
@@ -388,3 +393,117 @@ def test_every_problem_of_speed_is_named_at_once(tmp_path: Path) -> None:
         "'device' must be text",
     ):
         assert words in text
+
+
+# ----------------------------------------------------------------------------- honesty, plug-in, options
+
+
+def test_the_honesty_fields_are_required_and_test_labels_are_refused(tmp_path: Path) -> None:
+    meta = _good_meta()
+    for k in ("uses_test_labels", "selected_on", "training_kind"):
+        del meta[k]
+    text = _problems(_write(_repo(tmp_path), meta))
+    for k in ("uses_test_labels", "selected_on", "training_kind"):
+        assert f"missing field {k!r}" in text
+    bad = _good_meta(uses_test_labels="no", selected_on="train", training_kind="imagenet")
+    text = _problems(_write(_repo(tmp_path / "b"), bad))
+    assert "uses_test_labels must be true or false, got 'no'" in text
+    assert "selected_on 'train' is not one of val, test, nothing" in text
+    assert "training_kind 'imagenet' is not one of none, generator, real, other" in text
+    text = _problems(_write(_repo(tmp_path / "c"), _good_meta(uses_test_labels=True, selected_on="test")))
+    assert "the board ranks only methods that never used the test labels" in text
+    assert "selected_on is test: a method chosen on the test sets has used their labels" in text
+
+
+def test_scores_and_predictions_sha256_are_checked(tmp_path: Path) -> None:
+    meta = _good_meta(predictions_sha256="B" * 64, scores={"normal": -1, "camera": "x", "extra": 1.0})
+    text = _problems(_write(_repo(tmp_path), meta))
+    assert "predictions_sha256 is not 64 lowercase hex digits" in text
+    assert "scores lack object, robot, all" in text and "scores name unknown sets 'extra'" in text
+    assert (
+        "scores of 'normal' must be a number >= 0" in text and "scores of 'camera' must be a number" in text
+    )
+
+
+@pytest.mark.parametrize(
+    ("plugin", "problem"),
+    [
+        ({"requirement": "my-method>=1.0"}, "must be pinned as NAME==VERSION"),
+        ({"requirement": "my-method==1.*"}, "must be pinned as NAME==VERSION"),
+        ({"requirement": "my-method @ https://x.org/a.whl"}, "must be pinned as NAME==VERSION"),
+        ({"requirement": "a==1", "source": "plugin", "module": "m"}, "exactly one of requirement"),
+        ({"module": "m"}, "exactly one of requirement"),
+        ({"source": "../up", "module": "m"}, "must be the name of a folder in the entry folder"),
+        ({"source": "plugin"}, "a source needs module"),
+        ({"source": "plugin", "module": "os/path"}, "is not a dotted module name"),
+        ({"requirement": "a==1", "url": "x"}, "plugin: unknown field 'url'"),
+        ("my-method==1.0", "plugin must be a mapping"),
+    ],
+)
+def test_a_plugin_is_pinned_or_kept_in_the_entry(tmp_path: Path, plugin: object, problem: str) -> None:
+    assert problem in _problems(_write(_repo(tmp_path), _good_meta(plugin=plugin)))
+
+
+def test_a_pinned_requirement_is_read(tmp_path: Path) -> None:
+    plugin = {"requirement": "my-method==1.0.2", "module": "my_method.depth"}
+    entry = lb.read_entry(_write(_repo(tmp_path), _good_meta(plugin=plugin)))
+    assert entry.meta.plugin == plugin and entry.meta.to_dict()["plugin"] == plugin
+
+
+def test_a_plugin_source_holds_plain_python_files_with_its_module(tmp_path: Path) -> None:
+    folder = _repo(tmp_path)
+    meta = _good_meta(plugin={"source": "plugin", "module": "mine.depth"})
+    _write(folder, meta)
+    assert "plugin source plugin/ is not a folder in the entry folder" in _problems(folder)
+    (folder / "plugin" / "mine").mkdir(parents=True)
+    assert "plugin source plugin/ has no module mine.depth (mine/depth.py or mine/depth/__init__.py)" in (
+        _problems(folder)
+    )
+    (folder / "plugin" / "mine" / "__init__.py").write_text("")
+    (folder / "plugin" / "mine" / "depth.py").write_text("def predict(examples):\n    return None\n")
+    assert lb.read_entry(folder).meta.plugin == {"source": "plugin", "module": "mine.depth"}
+    (folder / "plugin" / "mine" / "weights.bin").write_bytes(b"\0\1")
+    (folder / "plugin" / "mine" / "latin.py").write_bytes(b"x = '\xe9'\n")
+    (folder / "plugin" / "mine" / "big.py").write_bytes(b"#" * (300 * 1024))
+    cache = folder / "plugin" / "mine" / "__pycache__"
+    cache.mkdir()
+    (cache / "depth.cpython-311.py").write_text("")
+    text = _problems(folder)
+    assert "plugin source plugin/mine/weights.bin is not a .py file" in text
+    assert "plugin source plugin/mine/latin.py is not UTF-8 text" in text
+    assert "plugin source plugin/mine/big.py is larger than 256 KiB" in text
+    assert "plugin source plugin/mine/__pycache__/depth.cpython-311.py is not a .py file" in text
+
+
+def test_a_link_in_a_plugin_source_is_refused_unread(tmp_path: Path) -> None:
+    folder = _repo(tmp_path)
+    _write(folder, _good_meta(plugin={"source": "plugin", "module": "mine"}))
+    (folder / "plugin").mkdir()
+    secret = tmp_path / "secret.py"
+    secret.write_text("TOKEN = 'do not show'\n")
+    (folder / "plugin" / "mine.py").symlink_to(secret)
+    text = _problems(folder)
+    assert "is a symbolic link" in text and "do not show" not in text
+
+
+@pytest.mark.parametrize(
+    ("options", "problem"),
+    [
+        ({"Config": "p"}, "options: name 'Config' must be lowercase"),
+        ({"config": ""}, "must be one line of 1 to 300 characters"),
+        ({"config": "a\nb"}, "must be one line of 1 to 300 characters"),
+        ({"config": ["a"]}, "must be text, a number or true/false, got a list"),
+        ({"scale": float("inf")}, "must be a finite number"),
+        ({f"o{i}": i for i in range(21)}, "holds 21 options; at most 20 are allowed"),
+        ("config=p", "options must be a mapping"),
+    ],
+)
+def test_options_are_scalars_by_keyword(tmp_path: Path, options: object, problem: str) -> None:
+    assert problem in _problems(_write(_repo(tmp_path), _good_meta(options=options)))
+
+
+def test_options_are_read_with_their_types(tmp_path: Path) -> None:
+    options = {"config": "p-z", "selection": "per-set", "steps": 3, "scale": 0.5, "robust": True}
+    entry = lb.read_entry(_write(_repo(tmp_path), _good_meta(options=options)))
+    assert entry.meta.options == options and entry.meta.to_dict()["options"] == options
+    assert {k: type(v) for k, v in entry.meta.options.items()} == {k: type(v) for k, v in options.items()}

@@ -27,6 +27,7 @@ from typing import Any
 from urllib.parse import parse_qs, urlsplit
 
 import pytest
+import yaml
 from click.testing import CliRunner
 from conftest import add_entry
 
@@ -158,8 +159,9 @@ def site(committed_data_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> 
 
 
 @pytest.fixture(scope="module")
-def board_json() -> dict[str, Any]:
-    return json.loads((REPO / "leaderboard" / lb.JSON_FILE).read_text(encoding="utf-8"))
+def board_json(site: Path) -> dict[str, Any]:
+    """The board the site was built from (the views are not committed: the site builds it)."""
+    return json.loads((site / "downloads" / lb.JSON_FILE).read_text(encoding="utf-8"))
 
 
 def _pages(site: Path) -> list[Path]:
@@ -202,7 +204,12 @@ def test_the_index_holds_each_board_in_board_order_and_links_every_entry(
 ) -> None:
     page = parse(site / "index.html")
     assert page.tables == _views(board_json)
-    assert set(page.tables) == {"odmd-paper-test", "odmd-v1-test", "odms-detection-test"}
+    assert set(page.tables) == {
+        "odmd-paper-test",
+        "odmd-v1-test",
+        "odms-detection-test",
+        "kitti-tracking-test",
+    }
     links = {v for tag, attr, v in page.links if tag == "a"}
     for board, methods in page.tables.items():
         for m in methods:
@@ -237,9 +244,15 @@ def test_every_link_resolves_to_a_file_of_the_site_and_nothing_is_loaded_from_el
 
 
 def test_the_downloads_are_the_board(site: Path, board_json: dict[str, Any]) -> None:
-    assert (site / "downloads" / "leaderboard.json").read_bytes() == (
-        REPO / "leaderboard" / lb.JSON_FILE
-    ).read_bytes()
+    # The board is built from the entries: every row's numbers are the scores its entry records.
+    rows = 0
+    for board in board_json["boards"]:
+        for row in board["rows"]:
+            entry = yaml.safe_load((REPO / "leaderboard" / row["entry"] / "entry.yaml").read_text())
+            shown = {s: m["percent_error"]["mean"] for s, m in row["sets"].items()} | {"all": row["all"]}
+            assert shown == entry["scores"] and row["predictions_csv_sha256"] == entry["predictions_sha256"]
+            rows += 1
+    assert rows == len(list((REPO / "leaderboard" / lb.ENTRIES).glob("*/*/entry.yaml")))
     import csv
 
     for board in board_json["boards"]:
@@ -333,9 +346,11 @@ def test_two_builds_with_figures_are_identical(small_board: Path, v1_data_dir: P
     assert figures == [
         "figures/box-ls--odmd-v1-test.png",
         "figures/expansion--odmd-v1-test.png",
-        "figures/speed.png",
+        "figures/speed.svg",
     ]
-    assert all(first[f].startswith(b"\x89PNG") for f in figures)
+    assert all(first[f].startswith(b"\x89PNG") for f in figures[:2])
+    assert first["figures/speed.svg"].startswith(b"<?xml") and b"<text" in first["figures/speed.svg"]
+    assert 'src="figures/speed.svg"' in first["index.html"].decode()
     page = first["methods/expansion.html"].decode()
     assert 'src="../figures/expansion--odmd-v1-test.png"' in page and "No figure" not in page
     assert "1 entries record their speed; 1 do not" in first["index.html"].decode()
@@ -364,13 +379,14 @@ def test_a_board_that_differs_from_its_entries_builds_no_site(
 ) -> None:
     root = tmp_path / "leaderboard"
     shutil.copytree(small_board, root)
-    path = root / lb.JSON_FILE
-    data = json.loads(path.read_text())
-    data["boards"][1]["rows"][0]["sets"]["camera"]["percent_error"]["mean"] += 0.01
-    path.write_text(json.dumps(data, indent=2) + "\n")
+    path = root / lb.ENTRIES / "box-ls" / "odmd-v1-test" / "entry.yaml"
+    meta = yaml.safe_load(path.read_text())
+    meta["scores"]["camera"] += 0.01
+    path.write_text(yaml.safe_dump(meta, sort_keys=False))
     with pytest.raises(ValidationError) as e:
         build_site(root, v1_data_dir, figures=False, n_resamples=FAST)
-    assert "differs from leaderboard.json in sets.camera.percent_error.mean" in "\n".join(e.value.problems)
+    assert "leaderboard check fails" in e.value.message
+    assert "entries/box-ls/odmd-v1-test/entry.yaml: scores.camera: recorded" in "\n".join(e.value.problems)
 
 
 def test_cli_site_writes_replaces_and_refuses_a_folder_of_other_files(
@@ -429,14 +445,33 @@ def test_an_extra_field_of_the_board_is_a_column_and_a_line_of_the_method_page(
     assert "<dt>Rows scored</dt>" in page and "Rows scored" not in plain["methods/box-ls.html"].decode()
 
 
-def test_facets() -> None:
-    base = {"calibrated": False, "command": "odmd-bench baseline dbox", "description": "d"}
-    assert facets({**base, "training_data": "none"})["training"] == "none"
-    assert facets({**base, "training_data": "ODMD generator v1, 100K steps"})["training"] == "generator"
-    assert facets({**base, "training_data": "KITTI"})["training"] == "other"
-    per_set = {**base, "training_data": "x", "command": "odmd-bench baseline dbox --selection per-set"}
+def test_facets_are_what_the_entry_declares() -> None:
+    base = {"calibrated": False, "training_data": "none (said in words)", "selected_on": "val"}
+    for kind in ("none", "generator", "real", "other"):
+        assert facets({**base, "training_kind": kind})["training"] == kind
+    assert facets({**base, "training_kind": "real", "selected_on": "nothing"})["selected_on"] == "nothing"
+    # per-set selection is an option the entry records, not a guess from its text
+    per_set = {**base, "training_kind": "x", "options": {"config": "p-z", "selection": "per-set"}}
     assert facets(per_set)["selection"] == "per-set"
-    assert facets({**base, "training_data": "x"})["selection"] == "overall"
+    words = {**base, "training_kind": "x", "command": "odmd-bench baseline dbox --selection per-set"}
+    assert facets(words)["selection"] == "overall"
+
+
+def test_the_method_page_shows_the_honesty_fields_and_how_to_get_a_plugin(site: Path) -> None:
+    page = (site / "methods" / "dbox-p-z-per-set.html").read_text()
+    assert "<dt>Selected on</dt><dd>val</dd>" in page and "<dt>Test labels used</dt><dd>no</dd>" in page
+    assert "(kind: generator)" in page
+    from odmd_bench.leaderboard.site.pages import reproduce
+
+    meta = {"command": "odmd-bench baseline mine -o p.csv", "plugin": {"requirement": "mine==1.2"}}
+    assert (
+        reproduce(meta, "entries/mine/odmd-v1-test")
+        == "pip install mine==1.2\nodmd-bench baseline mine -o p.csv"
+    )
+    meta["plugin"] = {"source": "plugin", "module": "mine.depth"}
+    assert reproduce(meta, "entries/mine/odmd-v1-test").splitlines()[0] == (
+        "# the plug-in's source: leaderboard/entries/mine/odmd-v1-test/plugin/ (module mine.depth)"
+    )
 
 
 def test_pareto_front() -> None:
@@ -528,7 +563,7 @@ def test_browser_a_filtered_view_shows_only_its_rows(
     browser: tuple[Any, str], board_json: dict[str, Any]
 ) -> None:
     page, base = browser
-    page.goto(f"{base}index.html?training=generator&selection=overall&sort=method&order=asc")
+    page.goto(f"{base}index.html?training=generator&selected_on=val&selection=overall&sort=method&order=asc")
     for board in board_json["boards"]:
         bid = f"{board['benchmark']}-{board['split']}"
         keep = [
@@ -536,6 +571,7 @@ def test_browser_a_filtered_view_shows_only_its_rows(
             for r in board["rows"]
             if facets(r["metadata"]) | {}
             and facets(r["metadata"])["training"] == "generator"
+            and facets(r["metadata"])["selected_on"] == "val"
             and facets(r["metadata"])["selection"] == "overall"
         ]
         expected = [r["method"] for r in sorted(keep, key=lambda r: (r["name"].lower(), r["position"]))]
@@ -585,3 +621,176 @@ def test_browser_writes_a_screenshot_of_the_index(
     shot = Path(os.environ.get("ODMD_SITE_SCREENSHOT") or tmp_path_factory.mktemp("screenshot") / "index.png")
     page.screenshot(path=str(shot))
     assert shot.read_bytes().startswith(b"\x89PNG") and 10_000 < shot.stat().st_size < 300_000
+
+
+# ----------------------------------------------------------------------------- layout, in a real browser
+
+#: The widths the site is checked at: a laptop and a phone (390 px: an iPhone 12 to 15).
+WIDTHS = (1280, 390)
+
+_BOX = "e => { const r = e.getBoundingClientRect(); return [r.left, r.top, r.right, r.bottom]; }"
+
+
+@pytest.mark.parametrize("width", WIDTHS)
+def test_browser_no_page_is_wider_than_the_window(browser: tuple[Any, str], site: Path, width: int) -> None:
+    """Every page, at both widths: nothing (a hash, a command, a table) widens the page itself.
+
+    Wide tables scroll inside their own box (``.scroll``); the page does not.
+    """
+    page, base = browser
+    page.set_viewport_size({"width": width, "height": 900})
+    try:
+        wide = {}
+        for path in _pages(site):
+            page.goto(base + path.relative_to(site).as_posix())
+            inner, scroll = page.evaluate("[window.innerWidth, document.documentElement.scrollWidth]")
+            if scroll > inner:
+                wide[path.relative_to(site).as_posix()] = scroll
+        assert wide == {}, f"pages wider than the window ({width} px): {wide}"
+    finally:
+        page.set_viewport_size({"width": 1280, "height": 900})
+
+
+@pytest.mark.parametrize("width", WIDTHS)
+def test_browser_method_and_all_stay_in_view_on_every_board(
+    browser: tuple[Any, str], site: Path, width: int
+) -> None:
+    """Each board's Method and All cells are on screen and on top, the table scrolled to either end."""
+    page, base = browser
+    page.set_viewport_size({"width": width, "height": 900})
+    try:
+        page.goto(base + "index.html")
+        boards = page.eval_on_selector_all("table[data-board]", "ts => ts.map(t => t.dataset.board)")
+        assert boards
+        for board in boards:
+            table = f'table[data-board="{board}"]'
+            for end in ("left", "right"):
+                page.eval_on_selector(
+                    table,
+                    "(t, end) => { const s = t.parentElement; s.scrollLeft = end === 'left' ? 0 : s.scrollWidth;"
+                    " window.scrollTo(0, t.getBoundingClientRect().top + window.scrollY - 100); }",
+                    end,
+                )
+                for cell in (
+                    'th[data-key="method"]',
+                    'th[data-key="all"]',
+                    "tbody tr:first-child td.all",
+                    'tbody tr:first-child td[data-k="method"]',
+                ):
+                    box = page.eval_on_selector(f"{table} {cell}", _BOX)
+                    left, top, right, bottom = box
+                    assert left >= 0 and right <= width, (board, end, cell, box)
+                    # on top: what the browser finds at the cell's middle is the cell (or inside it)
+                    on_top = page.eval_on_selector(
+                        f"{table} {cell}",
+                        "e => { const r = e.getBoundingClientRect();"
+                        " const x = document.elementFromPoint((r.left + r.right) / 2, (r.top + r.bottom) / 2);"
+                        " return x === e || e.contains(x); }",
+                    )
+                    assert on_top, (board, end, cell)
+    finally:
+        page.set_viewport_size({"width": 1280, "height": 900})
+
+
+def test_browser_an_address_the_page_cannot_show_is_said_on_the_page(
+    browser: tuple[Any, str], board_json: dict[str, Any]
+) -> None:
+    page, base = browser
+    page.goto(f"{base}index.html?board=odmd-v1-tset&sort=robto&order=up&training=alien&colour=red")
+    box = page.locator("#view-problems")
+    assert box.is_visible()
+    text = box.text_content() or ""
+    assert text.startswith("The address asks for a view this page cannot show:")
+    assert "board=odmd-v1-tset is not a board of this site (odmd-paper-test, " in text
+    assert "sort=robto is not a column (group, method, " in text
+    assert "order=up is neither asc nor desc" in text
+    assert "training=alien is not one of none, " in text
+    assert "colour is not a setting of the view" in text
+    # what is shown instead is said too: every board, the board order
+    assert (
+        page.eval_on_selector_all("section[data-board-section]", "s => s.filter(x => x.hidden).length") == 0
+    )
+    # a view chosen on the page is one it can show: the message goes
+    page.select_option("#controls select[name=board]", "odmd-v1-test")
+    assert not box.is_visible()
+    for good in ("", "?board=odmd-v1-test&sort=all&order=desc&training=generator"):
+        page.goto(f"{base}index.html{good}")
+        assert not page.locator("#view-problems").is_visible()
+
+
+def _speed_points(site: Path) -> tuple[list[SpeedPoint], list[str]]:
+    """The built board's entries that record a speed, and its boards."""
+    data = json.loads((site / "downloads" / "leaderboard.json").read_text(encoding="utf-8"))
+    points, boards = [], []
+    for b in data["boards"]:
+        bid = f"{b['benchmark']}-{b['split']}"
+        boards.append(bid)
+        for r in b["rows"]:
+            speed = r["metadata"].get("speed")
+            if speed:
+                points.append(SpeedPoint(bid, r["name"], float(speed["examples_per_second"]), r["all"]))
+    return points, boards
+
+
+def test_browser_the_speed_figures_labels_neither_overlap_nor_leave_it(
+    browser: tuple[Any, str], site: Path, tmp_path: Path
+) -> None:
+    """The committed board's figure and a crowded one, drawn by Chromium: every text's box, measured.
+
+    No two texts (point labels, ticks, titles, legend) share a pixel, and every one is
+    inside the figure. The crowded board has eight front points in one decade of speed
+    and a few percent of All, with long names.
+    """
+    pytest.importorskip("matplotlib")
+    from odmd_bench.leaderboard.site.figures import speed_svg
+
+    points, boards = _speed_points(site)
+    assert points
+    # eight on the front (faster, worse), four behind it
+    crowded = [
+        SpeedPoint("crowded", f"A rather long method name {i} (variant)", 1000 * 1.4**i, 4.0 + 1.1 * i)
+        for i in range(8)
+    ]
+    crowded += [SpeedPoint("crowded", f"dominated {i}", 900 * 1.3**i, 14.0) for i in range(4)]
+    page, base = browser
+    for name, svg in (
+        ("committed", speed_svg(points, boards)),
+        ("crowded", speed_svg(crowded, ["crowded"])),
+    ):
+        text = svg.decode("utf-8")
+        page.set_content(
+            "<!DOCTYPE html><html><body style='margin:0'>" + text[text.index("<svg") :] + "</body></html>"
+        )
+        found = page.evaluate(
+            """() => {
+                const svg = document.querySelector("svg");
+                const v = svg.getBoundingClientRect();
+                const texts = Array.from(svg.querySelectorAll("text")).filter(t => !t.parentElement.closest("text"));
+                return { view: [v.left, v.top, v.right, v.bottom], texts: texts.map(t => {
+                    const r = t.getBoundingClientRect();
+                    return [t.textContent.trim(), r.left, r.top, r.right, r.bottom]; }) };
+            }"""
+        )
+        left, top, right, bottom = found["view"]
+        texts = [t for t in found["texts"] if t[0]]
+        labels = {t[0] for t in texts}
+        drawn = points if name == "committed" else crowded
+        front = {
+            p.name.split(" (")[0]
+            for b in [*boards, "crowded"]
+            for p in pareto([q for q in drawn if q.board == b])
+        }
+        assert front <= labels, (name, front - labels)
+        outside = [t for t in texts if t[1] < left or t[2] < top or t[3] > right or t[4] > bottom]
+        assert outside == [], (name, outside)
+        overlapping = [
+            (a[0], b[0])
+            for i, a in enumerate(texts)
+            for b in texts[i + 1 :]
+            if min(a[3], b[3]) - max(a[1], b[1]) > 0 and min(a[4], b[4]) - max(a[2], b[2]) > 0
+        ]
+        assert overlapping == [], (name, overlapping)
+        shot = tmp_path / f"speed-{name}.png"
+        page.screenshot(path=str(shot), full_page=True)  # for review: look at it
+        assert shot.stat().st_size > 10_000
+    page.goto(base + "index.html")  # the page for the tests after this one

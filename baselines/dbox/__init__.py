@@ -30,7 +30,7 @@ Importing this package does not import torch; the functions do.
 from __future__ import annotations
 
 from odmd_bench_baselines.dbox.configs import OBSERVATIONS
-from odmd_bench_baselines.dbox.method import predict, predict_report, provenance
+from odmd_bench_baselines.dbox.method import OPTIONS, predict, predict_report, provenance
 from odmd_bench_baselines.dbox.weights import (
     CONFIGS,
     DEFAULT_WEIGHTS,
@@ -55,6 +55,7 @@ from odmd_bench_baselines.dbox.weights import (
 )
 
 __all__ = [
+    "OPTIONS",
     "CONFIGS",
     "DEFAULT_WEIGHTS",
     "MAX_WEIGHTS_BYTES",

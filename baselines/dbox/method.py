@@ -4,10 +4,13 @@ from __future__ import annotations
 
 import copy
 import os
+from pathlib import Path
 
 import numpy as np
 from odmd_bench_baselines.dbox.configs import OBSERVATIONS
 from odmd_bench_baselines.dbox.weights import (
+    CONFIGS,
+    SELECTIONS,
     _load,
     default_config,
     lateral_examples,
@@ -17,6 +20,47 @@ from odmd_bench_baselines.dbox.weights import (
 )
 
 from odmd_bench import DataError, Examples, implied_depth
+from odmd_bench.methods import MethodOption
+
+#: The options ``odmd-bench baseline`` and ``predict`` give it (see odmd_bench.methods).
+OPTIONS = (
+    MethodOption(
+        "weights",
+        Path,
+        None,
+        "Checkpoint file in the original release's layout (default: the shipped weights of --config).",
+    ),
+    MethodOption(
+        "weights_sha256",
+        str,
+        None,
+        "The SHA-256 the --weights file must have (refused otherwise); a file with a JSON record "
+        "beside it, or the original release's checkpoint, is checked without it.",
+        metavar="HEX",
+    ),
+    MethodOption(
+        "config",
+        str,
+        None,
+        "Shipped training configuration to run (default: p-z for z-only camera motion, as in "
+        "ODMS, else p); not with --weights.",
+        choices=CONFIGS,
+    ),
+    MethodOption(
+        "selection",
+        str,
+        "overall",
+        "overall: the checkpoint val chose for all sets; per-set: the one it chose for each set.",
+        choices=SELECTIONS,
+    ),
+    MethodOption(
+        "device",
+        str,
+        "cpu",
+        "Where the network runs: cpu, cuda, or auto (cuda when torch sees a GPU).",
+        choices=("cpu", "cuda", "auto"),
+    ),
+)
 
 #: Absolute-depth configurations are said to be outside their training data where the
 #: implied depth is beyond this factor of its range (the implied depth is a rough scale)

@@ -14,6 +14,10 @@ from odmd_bench_baselines.dbox_guard.steps import blend, cap, flag_wrong_starts,
 
 from odmd_bench import DataError, Examples
 
+#: The counts of the report that are repairs (``odmd_bench.predict.report``): a wrong start
+#: repaired, a depth capped.
+REPAIRS: tuple[str, ...] = ("wrong_start", "capped")
+
 #: The parameters val chose (written by ``python -m odmd_bench_baselines.dbox_guard.select``).
 PARAMETERS_FILE = Path(__file__).with_name("parameters.json")
 

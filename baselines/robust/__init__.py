@@ -114,7 +114,7 @@ Hyperparameters (:data:`DEFAULT_PARAMS`) were chosen on the ``val`` sets only by
 from __future__ import annotations
 
 from odmd_bench_baselines.robust import model
-from odmd_bench_baselines.robust.method import predict, predict_details, predict_report
+from odmd_bench_baselines.robust.method import OPTIONS, predict, predict_details, predict_report
 from odmd_bench_baselines.robust.model import (
     CHUNK,
     DEFAULT_PARAMS,
@@ -131,6 +131,7 @@ from odmd_bench_baselines.robust.scale import fit_scale
 from odmd_bench_baselines.robust.solver import fit
 
 __all__ = [
+    "OPTIONS",
     "CHUNK",
     "DEFAULT_PARAMS",
     "LOSSES",

@@ -28,6 +28,22 @@ from odmd_bench_baselines.robust.scale import fit_scale
 from odmd_bench_baselines.robust.solver import fit
 
 from odmd_bench import DataError, Examples, UsageError, carry_boxes, fill_missing
+from odmd_bench.methods import MethodOption
+
+#: The options ``odmd-bench baseline`` and ``predict`` give it (see odmd_bench.methods).
+OPTIONS = (
+    MethodOption(
+        "mode",
+        str,
+        "full",
+        "full: parallax and scale (needs the camera intrinsics); scale: the box sizes alone "
+        "(no intrinsics needed).",
+        choices=MODES,
+    ),
+)
+
+#: The counts of :func:`predict_report` that are fallbacks (``odmd_bench.predict.report``).
+FALLBACKS: tuple[str, ...] = ("fit_failed", "too_few_detections")
 
 
 def predict(

@@ -14,11 +14,10 @@ from typing import Any
 import click
 
 from odmd_bench.cli.options import (
-    METHOD_OPTIONS,
+    MethodCommand,
     data_dir_option,
     data_folder_problems,
     given_options,
-    method_options,
 )
 from odmd_bench.data.registry import BENCHMARKS, DEFAULT_BENCHMARK, SPLITS
 from odmd_bench.errors import UsageError
@@ -36,11 +35,13 @@ def _list_methods(ctx: click.Context, _param: click.Parameter, value: bool) -> N
         except UsageError as e:  # a broken plug-in is listed as such, not a failure of --list
             click.echo(f"{name}: not usable: {e}")
             continue
-        taken = [f"--{k.replace('_', '-')}" for k in METHOD_OPTIONS if method.accepts(k)]
+        taken = [o.flag for o in method.options]
         click.echo(
             f"{name}: {method.target} (from {method.source})"
             + (f"; takes {' '.join(taken)}" if taken else "")
         )
+        for option in method.options:
+            click.echo(f"    {option.describe()}")
     ctx.exit(0)
 
 
@@ -49,7 +50,7 @@ def default_output(name: str, benchmark: str, split: str) -> Path:
     return Path(f"preds-{name}-{benchmark}-{split}.csv")
 
 
-@click.command()
+@click.command(cls=MethodCommand, method_param="name")
 @click.argument("name")
 @click.option(
     "--list",
@@ -58,7 +59,7 @@ def default_output(name: str, benchmark: str, split: str) -> Path:
     expose_value=False,
     is_eager=True,
     callback=_list_methods,
-    help="List the registered methods, where each comes from and the options it takes, and exit.",
+    help="List the registered methods, where each comes from and the options it declares, and exit.",
 )
 @click.option(
     "--benchmark",
@@ -79,19 +80,19 @@ def default_output(name: str, benchmark: str, split: str) -> Path:
     "default: preds-NAME-BENCHMARK-SPLIT.csv here).",
 )
 @data_dir_option
-@method_options
 def baseline(
     name: str,
     benchmark: str,
     split: str,
     output: Path | None,
     data_dir: Path | None,
-    **method_values: Any,  # the options of method_options (METHOD_OPTIONS)
+    **method_values: Any,  # the options method NAME declares (MethodCommand)
 ) -> None:
     """Run method NAME on every set of a split and write a predictions CSV.
 
     NAME is a method registered under the entry-point group odmd_bench.methods, by this
-    package or any other installed one: --list shows them.
+    package or any other installed one: --list shows them. The options a method declares
+    are given after its name (odmd-bench baseline NAME --help lists them).
     """
     import numpy as np
 
@@ -107,6 +108,7 @@ def baseline(
     options = given_options(method, **method_values)
 
     from odmd_bench.predict.checks import method_warnings, scale_warnings
+    from odmd_bench.predict.report import report_line
 
     sets = load_split(split, benchmark, data_dir)
     depths: dict[str, np.ndarray] = {}
@@ -130,15 +132,16 @@ def baseline(
     n = sum(len(v) for v in depths.values())
     where = "standard output" if to_stdout else str(path)
     say(f"{name} on {benchmark} {split}: wrote {n} predictions ({', '.join(depths)}) to {where}")
+    say(
+        f"  command: {methods.format_command(name, options, benchmark, split, '-' if to_stdout else str(path))}"
+    )
     # The report's strings (what the method says of its run) once where every set agrees.
     said = [{k: v for k, v in r.items() if isinstance(v, str)} for r in reports.values()]
     common = {k: v for k, v in said[0].items() if all(d.get(k) == v for d in said)} if said else {}
     if common:
         say("  " + "; ".join(f"{k} {v}" for k, v in common.items()))
-    for (set_name, report), own in zip(reports.items(), said, strict=True):
-        used = [f"{k} {v}" for k, v in report.items() if isinstance(v, int) and k != "n" and v]
-        extra = "".join(f"; {k} {v}" for k, v in own.items() if k not in common)
-        say(f"  {set_name}: fallbacks: {', '.join(used) or 'none'}{extra}")
+    for set_name, report in reports.items():
+        say(f"  {set_name}: {report_line(method, report, skip=common)}")
     for line in warnings:
         click.echo(f"warning: {line}", err=True)
     hint = f"odmd-bench evaluate {'-' if to_stdout else path}"

@@ -136,7 +136,8 @@ def evaluate_command(
     \b
       split      val or test; one split per file
       set        each set of the benchmark (odmd-v1, odmd-paper: normal, camera,
-                 object, robot; odms-detection: normal, perturb, robot, driving)
+                 object, robot; odms-detection: normal, perturb, robot, driving;
+                 kitti-tracking: vehicle, person)
       index      0-based, the example's place in its set: each index of each set
                  exactly once
       depth      the estimated depth Z_n at the last observation, in metres: a

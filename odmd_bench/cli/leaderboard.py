@@ -1,4 +1,4 @@
-"""``leaderboard build``, ``check``, ``add``, ``site`` and ``audit``."""
+"""``leaderboard build``, ``check``, ``add``, ``site``, ``export`` and ``audit``."""
 
 from __future__ import annotations
 
@@ -10,6 +10,7 @@ import click
 from odmd_bench.cli.options import data_dir_option
 from odmd_bench.data.registry import BENCHMARKS, SPLITS
 from odmd_bench.errors import ValidationError
+from odmd_bench.leaderboard.rules import MAX_PARAMETERS, SELECTED_ON, TRAINING_KINDS
 
 _root_option = click.option(
     "--root",
@@ -39,25 +40,39 @@ def leaderboard() -> None:
     """The verified leaderboard: every row re-scored from committed predictions.
 
     \b
-    Add a method in three steps:
+    Add a method (CONTRIBUTING.md, step by step):
       1. odmd-bench baseline ... / your own code  ->  a predictions CSV
       2. odmd-bench leaderboard add PREDS.csv --method ID --name ... (see --help)
-      3. odmd-bench leaderboard build && odmd-bench leaderboard check
+      3. odmd-bench leaderboard check, then a pull request with the entry folder only
+    The tables, JSON and plot are derived: `leaderboard build` writes them (not committed).
     """
 
 
 @leaderboard.command("build")
+@click.option(
+    "-o",
+    "--output",
+    type=click.Path(file_okay=False, path_type=Path),
+    default=None,
+    help="The folder to write to [default: build/ in the leaderboard folder, ignored by git].",
+)
 @_root_option
 @_data_option
 @_original_option
-@click.option("--no-plot", is_flag=True, help="Do not draw leaderboard.png.")
-def build_command(root: Path | None, data_dir: Path | None, original: Path | None, no_plot: bool) -> None:
-    """Re-score every entry and write LEADERBOARD.md, leaderboard.json and leaderboard.png."""
-    from odmd_bench.leaderboard import build, write
+@click.option("--no-plot", is_flag=True, help="Do not draw leaderboard.png (it needs the [plot] extra).")
+def build_command(
+    output: Path | None, root: Path | None, data_dir: Path | None, original: Path | None, no_plot: bool
+) -> None:
+    """Re-score every entry and write LEADERBOARD.md, leaderboard.json and leaderboard.png.
+
+    They are derived from the entries and not committed; without matplotlib the plot is
+    skipped (the rest is written, and the command succeeds).
+    """
+    from odmd_bench.leaderboard import build, build_folder, write
 
     folder = _root(root)
     built = build(folder, data_dir, original, progress=lambda line: click.echo(line, err=True))
-    for line in write(folder, built, plot=not no_plot):
+    for line in write(output if output is not None else build_folder(folder), built, plot=not no_plot):
         click.echo(line)
     n = sum(len(b.rows) for b in built.boards)
     click.echo(f"{n} entries on {len(built.boards)} boards; {len(built.reported)} reported results")
@@ -75,17 +90,18 @@ def build_command(root: Path | None, data_dir: Path | None, original: Path | Non
     "(re-runs every audited method: about a minute).",
 )
 def check_command(root: Path | None, data_dir: Path | None, original: Path | None, audits: bool) -> None:
-    """Re-score every entry and compare the committed table and JSON with what build writes now.
+    """Re-score every entry and compare it with the predictions' SHA-256 and scores it records.
 
-    A line per board on stderr while it runs; every difference is named (file, row,
-    field, old and new). Each recorded audit file must be well formed and match the
-    board; --audits also re-runs them.
+    A line per board on stderr while it runs; every difference is named (entry, field,
+    recorded and re-scored value). The whole board is built as `build` builds it (rank
+    groups, reported results); each recorded audit file must be well formed and match the
+    board; --audits also re-runs them. Nothing is written.
 
     \b
     Exit status:
-      0  the committed files are what build writes, every entry re-scored
-      1  the gate failed: a committed file differs from a fresh build (with --audits:
-         or a recorded audit differs from its re-run)
+      0  every entry re-scored, and each records its predictions' SHA-256 and scores
+      1  the gate failed: an entry's recorded SHA-256 or score differs from its re-scoring
+         (with --audits: or a recorded audit differs from its re-run)
       2  bad input: an entry, reported.yaml or an audit file is invalid (every problem named)
     """
     from odmd_bench.leaderboard import check_report
@@ -96,7 +112,7 @@ def check_command(root: Path | None, data_dir: Path | None, original: Path | Non
         n = len(report.invalid)
         raise ValidationError(
             f"leaderboard check failed ({folder}): {n} {'problem' if n == 1 else 'problems'} with the "
-            "entries; fix them, then run `odmd-bench leaderboard build`",
+            "entries; fix them (`odmd-bench leaderboard add --replace` rewrites an entry)",
             report.invalid,
         )
     differences = list(report.differences)
@@ -109,17 +125,20 @@ def check_command(root: Path | None, data_dir: Path | None, original: Path | Non
     if differences:
         n = len(differences)
         click.echo(
-            f"fail: leaderboard check ({folder}): {n} {'difference' if n == 1 else 'differences'} from what "
-            + ("the audits give now" if not report.differences else "build writes now")
-            + "; run `odmd-bench leaderboard build` and commit LEADERBOARD.md, "
-            "leaderboard.json and README.md" + ("" if report.differences else " (or record the audit again)"),
+            f"fail: leaderboard check ({folder}): {n} {'difference' if n == 1 else 'differences'} "
+            + (
+                "between the recorded audits and their re-runs; record the audit again"
+                if not report.differences
+                else "between what the entries record and their re-scoring: an entry's predictions "
+                "or numbers were changed by hand; make it again with `odmd-bench leaderboard add --replace`"
+            ),
             err=True,
         )
         for line in differences:
             click.echo(f"  - {line}", err=True)
         click.get_current_context().exit(1)
     said = "; every recorded audit re-run" if audits else ""
-    click.echo(f"leaderboard check passed: {folder} is what build writes, every entry re-scored{said}")
+    click.echo(f"leaderboard check passed: {folder}: every entry re-scored, as it records{said}")
 
 
 @leaderboard.command("add")
@@ -131,8 +150,75 @@ def check_command(root: Path | None, data_dir: Path | None, original: Path | Non
 @click.option("--description", required=True, help="One or two sentences (at most 500 characters).")
 @click.option("--paper", required=True, help="Link to the paper, or 'none'.")
 @click.option("--code", required=True, help="Link to the code, or a path in this repository.")
-@click.option("--training-data", required=True, help="What it trained on ('none' for analytical methods).")
-@click.option("--command", "command_", required=True, help="The exact command that produced the predictions.")
+@click.option(
+    "--training-data",
+    required=True,
+    help="What it trained or tuned on, in words ('none' for analytical methods).",
+)
+@click.option(
+    "--training-kind",
+    required=True,
+    type=click.Choice(TRAINING_KINDS),
+    help="The kind of training data: none (nothing fitted to data), generator (generated examples), "
+    "real (recorded data), other.",
+)
+@click.option(
+    "--selected-on",
+    required=True,
+    type=click.Choice(SELECTED_ON),
+    help="What the weights, hyperparameters or checkpoint were chosen on: val, test (refused: it uses the "
+    "test labels) or nothing.",
+)
+@click.option(
+    "--uses-test-labels/--no-test-labels",
+    required=True,
+    help="Whether the test labels were used in any way (training, tuning, selection); the board takes "
+    "--no-test-labels only.",
+)
+@click.option(
+    "--command",
+    "command_",
+    default=None,
+    help="The exact command that produced the predictions (or give --baseline).",
+)
+@click.option(
+    "--baseline",
+    default=None,
+    help="The method `odmd-bench baseline NAME` ran; the command is made from it and --option.",
+)
+@click.option(
+    "--option",
+    "option_pairs",
+    multiple=True,
+    metavar="NAME=VALUE",
+    help="An option the predictions were made with (repeat it), recorded as the entry's options.",
+)
+@click.option(
+    "--requirement",
+    default=None,
+    metavar="NAME==VERSION",
+    help="A plug-in method's pinned requirement: how anyone gets it (pip install NAME==VERSION).",
+)
+@click.option(
+    "--plugin-source",
+    type=click.Path(exists=True, file_okay=False, path_type=Path),
+    default=None,
+    help="A plug-in method's folder of plain .py files, copied into the entry (plugin/); with --plugin-module.",
+)
+@click.option("--plugin-module", default=None, help="The module in --plugin-source that is the method.")
+@click.option(
+    "--parameters",
+    type=click.IntRange(0, MAX_PARAMETERS),
+    default=None,
+    help="The number of trained parameters (network weights) the command runs; 0 without trained weights.",
+)
+@click.option(
+    "--speed",
+    "speed_file",
+    type=click.Path(exists=True, dir_okay=False, path_type=Path),
+    default=None,
+    help="The JSON file `odmd-bench leaderboard speed ... -o FILE` wrote: recorded as the entry's speed.",
+)
 @click.option("--benchmark", required=True, type=click.Choice(list(BENCHMARKS)))
 @click.option(
     "--split",
@@ -150,13 +236,104 @@ def check_command(root: Path | None, data_dir: Path | None, original: Path | Non
 @_root_option
 @_data_option
 @_original_option
-def add_command(predictions: Path, root: Path | None, command_: str, **fields: Any) -> None:
-    """Add the predictions CSV PREDICTIONS as an entry (validated, hashed, compressed)."""
-    from odmd_bench.leaderboard import add_entry
+def add_command(
+    predictions: Path,
+    root: Path | None,
+    command_: str | None,
+    option_pairs: tuple[str, ...],
+    speed_file: Path | None,
+    **fields: Any,
+) -> None:
+    """Add the predictions CSV PREDICTIONS as an entry (validated, hashed, scored, compressed).
 
+    The entry records the predictions' SHA-256 and their scores (which `check` compares
+    with a re-scoring), the honesty fields (--uses-test-labels, --selected-on,
+    --training-kind), and for a plug-in method how to get it (--requirement, or
+    --plugin-source with --plugin-module). Give the command that made the predictions,
+    or --baseline NAME and its --option NAME=VALUE.
+    """
+    from odmd_bench.leaderboard import add_entry
+    from odmd_bench.leaderboard.add import parse_options
+    from odmd_bench.leaderboard.speed import read_speed
+
+    if (command_ is None) == (fields["baseline"] is None):
+        raise click.UsageError(
+            "give --command (the command that made the predictions) or --baseline, not both"
+        )
+    options = parse_options(option_pairs)
+    speed = read_speed(speed_file) if speed_file is not None else None
     # The other options are add_entry's keywords, under the same names.
-    entry = add_entry(_root(root), predictions, command=command_, **fields)
-    click.echo(f"added {entry.folder}; now run `odmd-bench leaderboard build` and commit the folder")
+    entry = add_entry(
+        _root(root), predictions, command=command_, options=options or None, speed=speed, **fields
+    )
+    click.echo(
+        f"added {entry.folder}; run `odmd-bench leaderboard check`, then open a pull request with that folder"
+    )
+
+
+@leaderboard.command("speed")
+@click.argument("name")
+@click.option("--benchmark", required=True, type=click.Choice(list(BENCHMARKS)))
+@click.option("--split", default="test", show_default=True, type=click.Choice(SPLITS))
+@click.option(
+    "--option",
+    "option_pairs",
+    multiple=True,
+    metavar="NAME=VALUE",
+    help="An option of the method, as the entry records it (repeat it).",
+)
+@click.option(
+    "-o",
+    "--output",
+    type=click.Path(dir_okay=False, path_type=Path),
+    default=None,
+    help="Write the speed as JSON, for `leaderboard add --speed FILE`.",
+)
+@_data_option
+@_original_option
+def speed_command(
+    name: str,
+    benchmark: str,
+    split: str,
+    option_pairs: tuple[str, ...],
+    output: Path | None,
+    data_dir: Path | None,
+    original: Path | None,
+) -> None:
+    """Measure the examples per second of `odmd-bench baseline NAME` as the entries' speed is measured.
+
+    One thread (BLAS, OpenMP and torch: the command runs itself again with
+    OPENBLAS_NUM_THREADS, OMP_NUM_THREADS and MKL_NUM_THREADS at 1 where they are not),
+    every set of the board's split in one call each, the best of 5 rounds; the CPU model
+    is recorded with the figure. Prints the entry's `speed`; -o writes it for `add --speed`.
+    """
+    import os
+    import subprocess
+    import sys
+
+    from odmd_bench.data.atomic import atomic_write
+    from odmd_bench.leaderboard.add import parse_options
+    from odmd_bench.leaderboard.speed import THREAD_VARIABLES, measure, one_thread, speed_text
+
+    if not one_thread():  # BLAS reads them once, at start: run again with them set
+        argv = ["leaderboard", "speed", name, "--benchmark", benchmark, "--split", split]
+        argv += [a for pair in option_pairs for a in ("--option", pair)]
+        given = (("-o", output), ("--data-dir", data_dir), ("--original", original))
+        argv += [a for flag, value in given if value is not None for a in (flag, str(value))]
+        env = {**os.environ, **dict.fromkeys(THREAD_VARIABLES, "1")}
+        done = subprocess.run([sys.executable, "-m", "odmd_bench", *argv], env=env, check=False)
+        click.get_current_context().exit(done.returncode)
+    options = parse_options(option_pairs)
+    speed = measure(name, options, benchmark, split, data_dir=data_dir, original=original)
+    if output is not None:
+        import json
+
+        with atomic_write(output, "w") as fh:
+            fh.write(json.dumps(speed, indent=2) + "\n")
+        click.echo(
+            f"wrote {output}; record it with `odmd-bench leaderboard add ... --speed {output}`", err=True
+        )
+    click.echo(speed_text(speed), nl=False)
 
 
 @leaderboard.command("site")
@@ -169,9 +346,15 @@ def add_command(predictions: Path, root: Path | None, command_: str, **fields: A
 )
 @click.option("--no-plot", is_flag=True, help="Draw no figures (they need the [plot] extra, matplotlib).")
 @click.option(
+    "--no-croissant",
+    is_flag=True,
+    help="Write no Croissant descriptions into downloads/ (by default one per ranked benchmark, which "
+    "loads its val and test sets).",
+)
+@click.option(
     "--source-url",
     default=None,
-    help="Where repository paths link to, e.g. https://github.com/OWNER/odmd-bench/blob/main "
+    help="Where repository paths link to, e.g. https://github.com/odmd-bench/odmd-bench/blob/main "
     "[default: shown as text].",
 )
 @_root_option
@@ -180,6 +363,7 @@ def add_command(predictions: Path, root: Path | None, command_: str, **fields: A
 def site_command(
     output: Path,
     no_plot: bool,
+    no_croissant: bool,
     source_url: str | None,
     root: Path | None,
     data_dir: Path | None,
@@ -187,15 +371,20 @@ def site_command(
 ) -> None:
     """Write the leaderboard as a static web site: index, a page per method, downloads.
 
-    Built from the committed leaderboard.json, each entry re-scored beside it (a number
-    that differs stops it: run `leaderboard build` first). Serve the folder with any web
-    server, e.g. python -m http.server -d DIR.
+    Built from the entries, as `leaderboard build` builds the board (an entry whose
+    recorded SHA-256 or scores differ from its re-scoring stops it, as `check` fails).
+    Serve the folder with any web server, e.g. python -m http.server -d DIR.
     """
     from odmd_bench.leaderboard.site import build_site, write_site
 
     folder = _root(root)
     files, said = build_site(
-        folder, data_dir, original, figures=False if no_plot else None, source_url=source_url
+        folder,
+        data_dir,
+        original,
+        figures=False if no_plot else None,
+        source_url=source_url,
+        croissant=not no_croissant,
     )
     kept = write_site(files, output)
     for line in said:
@@ -205,6 +394,52 @@ def site_command(
         click.echo(f"kept {len(kept)} file(s) in {output} that odmd-bench did not write: {shown}")
     pages = sum(1 for name in files if name.endswith(".html"))
     click.echo(f"wrote {output}: {len(files)} files, {pages} pages (open {output / 'index.html'})")
+
+
+@leaderboard.command("export")
+@click.option(
+    "--format",
+    "fmt",
+    required=True,
+    type=click.Choice(["hf-eval-results", "json"]),
+    help="hf-eval-results: Hugging Face's .eval_results YAML, a folder per method; json: results.json, "
+    "a record per entry with its provenance (re-scored here, or reported in a paper).",
+)
+@click.option(
+    "-o",
+    "--output",
+    required=True,
+    type=click.Path(path_type=Path),
+    help="The folder to write into (files of the same names are replaced).",
+)
+@click.option(
+    "--hf-dataset",
+    default=None,
+    help="hf-eval-results: the Hub dataset id the results name [default: odmd-bench/odmd].",
+)
+@_root_option
+@_data_option
+@_original_option
+def export_command(
+    fmt: str,
+    output: Path,
+    hf_dataset: str | None,
+    root: Path | None,
+    data_dir: Path | None,
+    original: Path | None,
+) -> None:
+    """Write the board in an exchange format other leaderboards read (docs/format.md).
+
+    Every entry is re-scored first, as by `leaderboard build` (a problem stops it); the
+    numbers are leaderboard.json's.
+    """
+    from odmd_bench.leaderboard import build
+    from odmd_bench.leaderboard.export import HF_DATASET, export_files, write_export
+
+    built = build(_root(root), data_dir, original, progress=lambda line: click.echo(line, err=True))
+    files = export_files(built, fmt, hf_dataset=hf_dataset or HF_DATASET)
+    for path in write_export(files, output):
+        click.echo(str(path))
 
 
 @leaderboard.command("audit")

@@ -8,9 +8,9 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import Any
 
 import click
 
@@ -64,84 +64,188 @@ def data_folder_problems(outputs: Mapping[str, Path | None], data_dir: Path | No
     return problems
 
 
-#: The options a method may take; each is passed only to a method whose ``predict`` does.
-METHOD_OPTIONS: tuple[str, ...] = (
-    "weights",
-    "weights_sha256",
-    "config",
-    "selection",
-    "mode",
-    "combine",
-    "device",
-)
-
-F = TypeVar("F", bound=Callable[..., Any])
+_METHOD = "odmd_bench.method"
+_PARAMS = "odmd_bench.method_params"
 
 
-def method_options(f: F) -> F:
-    """Add ``--weights``, ``--weights-sha256``, ``--config``, ``--selection``, ``--mode``, ``--combine`` and ``--device`` to a command running a method."""
-    decorators = [
-        click.option(
-            "--weights",
-            type=click.Path(exists=True, dir_okay=False, path_type=Path),
-            default=None,
-            help="Checkpoint file, for the methods that load one (see odmd-bench baseline --list).",
-        ),
-        click.option(
-            "--weights-sha256",
-            "weights_sha256",
-            default=None,
-            metavar="HEX",
-            help="The SHA-256 the --weights file must have (refused otherwise); a file with a JSON "
-            "record beside it, or the original release's checkpoint, is checked without it.",
-        ),
-        click.option(
-            "--config",
-            default=None,
-            help="Named configuration, for the methods that have them (see odmd-bench baseline --list).",
-        ),
-        click.option(
-            "--selection",
-            default=None,
-            help="How the weights were selected, for the methods that ship several "
-            "(see odmd-bench baseline --list).",
-        ),
-        click.option(
-            "--mode",
-            default=None,
-            help="Mode, for the methods that have several (see odmd-bench baseline --list).",
-        ),
-        click.option(
-            "--combine",
-            default=None,
-            help="How a method combines its per-axis solutions, for the methods that have several: "
-            "mean (the paper) or lsq (least squares, weighted by each axis's signal; parallax, "
-            "expansion).",
-        ),
-        click.option(
-            "--device",
-            type=click.Choice(["cpu", "cuda", "auto"]),
-            default=None,
-            help="Where a network runs, for the methods that have one (DBox): cpu (the default), cuda, "
-            "or auto (cuda when torch sees a GPU).",
-        ),
-    ]
-    for decorate in reversed(decorators):
-        f = decorate(f)
-    return f
+def _click_type(option: Any) -> click.ParamType:
+    if option.choices:
+        return click.Choice(list(option.choices))
+    if option.type is Path:
+        return click.Path(exists=True, dir_okay=False, path_type=Path)
+    return {str: click.STRING, int: click.INT, float: click.FLOAT, bool: click.BOOL}[option.type]
+
+
+class MethodCommand(click.Command):
+    """A command that runs a method: the options the method declares are the command's too.
+
+    The method is named by an argument or an option of the command (``method_param``:
+    ``baseline NAME``, ``predict --method NAME``). It is found in the command line
+    before the line is parsed (every option takes one value, so that the name can be
+    found without knowing the method's options), loaded, and its declared options
+    (:attr:`odmd_bench.methods.Method.options`) become click options: typed, their
+    choices checked (a usage error, exit 2, naming the valid ones), listed by
+    ``--help`` under the method's name. The callback gets them as keywords (``None``:
+    not given), for :func:`given_options`. An option another registered method declares
+    is refused naming that method (``--mode applies to robust only, not to 'box-ls'``).
+    """
+
+    def __init__(self, *args: Any, method_param: str, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.method_param = method_param
+
+    def _own(self) -> dict[str, click.Parameter]:
+        return {o: p for p in self.params for o in (*p.opts, *p.secondary_opts) if o.startswith("-")}
+
+    def method_name(self, ctx: click.Context, args: list[str]) -> str | None:
+        """The method's name in ``args`` (``None``: not named), without parsing them."""
+        own = self._own()
+        positional = []
+        i = 0
+        while i < len(args):
+            word = args[i]
+            i += 1
+            if word == "--":
+                positional += args[i:]
+                break
+            if not word.startswith("-") or word == "-":
+                positional.append(word)
+                continue
+            flag, eq, value = word.partition("=")
+            param = own.get(flag)
+            if param is None and not flag.startswith("--") and flag[:2] in own:
+                param, eq, value = own[flag[:2]], "=", flag[2:]  # -oFILE
+            if flag in ctx.help_option_names or (isinstance(param, click.Option) and param.is_flag):
+                continue
+            takes = param.nargs if param is not None else 1
+            if param is not None and param.name == self.method_param:
+                return value if eq else (args[i] if i < len(args) else None)
+            i += takes - (1 if eq else 0)
+        argument = next((p for p in self.params if p.name == self.method_param), None)
+        if isinstance(argument, click.Argument):
+            return positional[0] if positional else None
+        return None
+
+    def parse_args(self, ctx: click.Context, args: list[str]) -> list[str]:
+        """Load the method ``args`` name and add its options, then parse as click does."""
+        from odmd_bench import methods
+        from odmd_bench.errors import UsageError
+
+        name = self.method_name(ctx, args)
+        method = None
+        if name is not None:
+            try:
+                method = methods.load(name)
+            except UsageError:
+                # --list lists every method, the broken ones too; shell completion
+                # (resilient parsing) completes a name being typed
+                if not (ctx.resilient_parsing or "--list" in args):
+                    raise
+        ctx.meta[_METHOD] = method
+        if method is not None:
+            try:
+                ctx.meta[_PARAMS] = self._method_params(method)
+                self._refuse_undeclared(ctx, method, args)
+            except UsageError:
+                if not ctx.resilient_parsing:
+                    raise
+        return super().parse_args(ctx, args)
+
+    def _method_params(self, method: Any) -> list[click.Option]:
+        from odmd_bench.errors import UsageError
+
+        own = self._own()
+        names = {p.name for p in self.params}
+        clash = [o.flag for o in method.options if o.flag in own or o.name in names]
+        if clash:
+            raise UsageError(
+                f"method {method.name!r} ({method.target}, from {method.source}) declares "
+                f"{', '.join(clash)}, which odmd-bench {self.name} takes itself; the method must rename it"
+            )
+        out = []
+        for o in method.options:
+            shown = "" if o.default is None else f" [default: {_format(o.default)}]"
+            out.append(
+                click.Option(
+                    [o.flag, o.name],
+                    type=_click_type(o),
+                    default=None,
+                    metavar=o.metavar,
+                    help=o.help + shown,
+                )
+            )
+        return out
+
+    def _refuse_undeclared(self, ctx: click.Context, method: Any, args: list[str]) -> None:
+        from odmd_bench import methods
+
+        known = {*self._own(), *ctx.help_option_names, *(o.flag for o in method.options)}
+        unknown = []
+        for word in args:
+            if word == "--":
+                break
+            flag = word.partition("=")[0]
+            if flag.startswith("--") and flag not in known:
+                unknown.append(flag[2:].replace("-", "_"))
+        declared = {k: None for k in unknown if methods.declaring(k)}
+        if declared:
+            methods.check_options(method, declared, spell=lambda k: "--" + k.replace("_", "-"))
+
+    def get_params(self, ctx: click.Context) -> list[click.Parameter]:
+        """The command's own parameters, then the method's options, then ``--help``."""
+        params = super().get_params(ctx)
+        extra = ctx.meta.get(_PARAMS, [])
+        if not extra:
+            return params
+        help_option = self.get_help_option(ctx)
+        own = [p for p in params if p is not help_option]
+        return [*own, *extra, *([help_option] if help_option is not None else [])]
+
+    def format_options(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
+        """The command's options, then the method's under its name (or how to see them)."""
+        extra = ctx.meta.get(_PARAMS, [])
+        records = [r for p in self.get_params(ctx) if p not in extra and (r := p.get_help_record(ctx))]
+        with formatter.section("Options"):
+            formatter.write_dl(records)
+        method = ctx.meta.get(_METHOD)
+        if method is None:
+            formatter.write_paragraph()
+            param = next((p for p in self.params if p.name == self.method_param), None)
+            named = "NAME" if isinstance(param, click.Argument) else f"{param.opts[0] if param else ''} NAME"
+            formatter.write_text(
+                f"The options a method declares are options of this command too: odmd-bench {self.name} "
+                f"{named} --help lists them (odmd-bench baseline --list lists every method's)."
+            )
+            return
+        mine = [r for p in extra if (r := p.get_help_record(ctx))]
+        with formatter.section(f"Options of method {method.name} ({method.source})"):
+            if mine:
+                formatter.write_dl(mine)
+            else:
+                formatter.write_text("none (its module declares no OPTIONS)")
+
+
+def _format(value: Any) -> str:
+    from odmd_bench.methods import format_value
+
+    return format_value(value)
 
 
 def given_options(method: Any, **values: Any) -> dict[str, Any]:
-    """The method options given on the command line, checked against what ``method`` takes.
+    """The method options given on the command line (``None``: not given), checked.
+
+    Returns:
+        ``{keyword: value}`` in the order the method declares them.
 
     Raises:
-        UsageError: an option the method does not take (every one named).
+        UsageError: an option the method does not declare (every one named, with the
+            methods that do), or a value of the wrong type or not one of its choices.
     """
     from odmd_bench import methods
 
     options = {k: v for k, v in values.items() if v is not None}
     methods.check_options(method, options, spell=lambda k: f"--{k.replace('_', '-')}")
-    return options
+    return dict(method.values(options))
 
 
 def _refuse_nonfinite(
@@ -181,12 +285,11 @@ FINITE_FLOAT = FiniteFloat()
 
 __all__ = [
     "FINITE_FLOAT",
-    "METHOD_OPTIONS",
     "FiniteFloat",
     "FiniteFloatRange",
+    "MethodCommand",
     "data_dir_option",
     "data_dir_or_out_option",
     "given_options",
-    "method_options",
     "same_file",
 ]

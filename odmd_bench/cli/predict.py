@@ -7,12 +7,16 @@ The format is :mod:`odmd_bench.predict.sequences`'s; the method is any registere
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import click
 
-from odmd_bench.cli.options import FINITE_FLOAT, FiniteFloatRange, given_options, method_options, same_file
+from odmd_bench.cli.options import FINITE_FLOAT, FiniteFloatRange, MethodCommand, given_options, same_file
 from odmd_bench.errors import UsageError
+
+if TYPE_CHECKING:
+    from odmd_bench.predict import Missing
+    from odmd_bench.predict.convention import Order, Orientation
 
 
 def default_output(source: str, method: str) -> Path:
@@ -27,7 +31,7 @@ def error_summary(truth: Any, depth: Any) -> str:
 
     from odmd_bench.evaluation.metrics import STATS, set_metrics
 
-    known = np.isfinite(truth)
+    known = np.isfinite(truth) & np.isfinite(depth)
     m = set_metrics(truth[known], depth[known])
     rows = {
         "percent error (%)": [f"{m['percent_error'][s]:.2f}" for s in STATS],
@@ -37,7 +41,12 @@ def error_summary(truth: Any, depth: Any) -> str:
     # never run into each other.
     widths = [max(8, len(s), *(len(r[k]) for r in rows.values())) + 1 for k, s in enumerate(STATS)]
     lines = [
-        f"error against the true depths given ({m['n']} of {len(truth)} sequences):",
+        f"error against the true depths given ({m['n']} of {len(truth)} sequences"
+        + (
+            f"; {int((np.isfinite(truth) & ~known).sum())} with a truth were given no depth):"
+            if (np.isfinite(truth) & ~known).any()
+            else "):"
+        ),
         f"{'':20}" + "".join(f"{s:>{w}}" for s, w in zip(STATS, widths, strict=True)),
         *(
             f"{name:20}" + "".join(f"{c:>{w}}" for c, w in zip(cells, widths, strict=True))
@@ -47,10 +56,14 @@ def error_summary(truth: Any, depth: Any) -> str:
     return "\n".join(lines)
 
 
-@click.command()
+@click.command(cls=MethodCommand, method_param="method_name")
 @click.argument("sequences", metavar="SEQUENCES.csv")
 @click.option(
-    "--method", "method_name", required=True, help="Registered method (odmd-bench baseline --list)."
+    "--method",
+    "method_name",
+    required=True,
+    help="Registered method (odmd-bench baseline --list); the options it declares follow "
+    "(odmd-bench predict --method NAME --help lists them).",
 )
 @click.option(
     "--image-size",
@@ -76,20 +89,47 @@ def error_summary(truth: Any, depth: Any) -> str:
     help="The boxes are fractions of the image (0 to 1), not pixels: multiplied by W and H.",
 )
 @click.option(
+    "--orientation",
+    type=click.Choice(["camera-to-world", "world-to-camera"]),
+    default="camera-to-world",
+    show_default=True,
+    help="What the quaternions cam_qx..cam_qw rotate: camera coordinates into the fixed frame "
+    "(the format's), or the inverse.",
+)
+@click.option(
+    "--quaternion-order",
+    type=click.Choice(["xyzw", "wxyz"]),
+    default="xyzw",
+    show_default=True,
+    help="The order of the quaternion's components in the columns cam_qx, cam_qy, cam_qz, cam_qw: "
+    "x, y, z, w (the format's, TUM's) or w, x, y, z (Eigen's).",
+)
+@click.option(
+    "--missing",
+    type=click.Choice(["omit", "fill"]),
+    default=None,
+    help="Missed detections: omit (the default: each method gets the detected observations only, "
+    "the depth carried to the last) or fill (the paper's rule, each method's own: the box of the "
+    "nearest detection; the default and the only choice for a method built for a fixed number of "
+    "observations, DBox).",
+)
+@click.option(
     "-o",
     "--output",
     default=None,
     help="Depths CSV to write; '-' for standard output (default: SEQUENCES-METHOD.csv here).",
 )
-@method_options
 def predict(
     sequences: str,
     method_name: str,
     image_size: tuple[float, float],
     intrinsics: tuple[float, float, float, float] | None,
     normalized_boxes: bool,
+    orientation: Orientation,
+    quaternion_order: Order,
+    missing: Missing | None,
     output: str | None,
-    **method_values: Any,  # the options of method_options (METHOD_OPTIONS)
+    **method_values: Any,  # the options the method declares (MethodCommand)
 ) -> None:
     """Estimate the depth at the last observation of every sequence in SEQUENCES.csv.
 
@@ -106,7 +146,8 @@ def predict(
 
     from odmd_bench import methods
     from odmd_bench.data.atomic import atomic_write
-    from odmd_bench.predict import format_depths, predict_sequences
+    from odmd_bench.predict import format_depths, method_observations, predict_sequences
+    from odmd_bench.predict.report import report_line
     from odmd_bench.predict.sequences import read_sequences
 
     target = (
@@ -121,8 +162,15 @@ def predict(
     method = methods.load(method_name)
     options = given_options(method, **method_values)
 
-    seqs = read_sequences(sequences, image_size, intrinsics, normalized_boxes=normalized_boxes)
-    result = predict_sequences(seqs, method, **options)
+    seqs = read_sequences(
+        sequences,
+        image_size,
+        intrinsics,
+        normalized_boxes=normalized_boxes,
+        orientation=orientation,
+        quaternion_order=quaternion_order,
+    )
+    result = predict_sequences(seqs, method, missing, **options)
     text = format_depths(result)
     to_stdout = output == "-"
     path = target
@@ -137,17 +185,21 @@ def predict(
 
     lengths = np.unique(seqs.n_obs)
     span = str(lengths[0]) if lengths.size == 1 else f"{lengths[0]}-{lengths[-1]}"
-    used = np.unique(result.observations)
-    chose = "" if np.array_equal(used, lengths) else f" ({used[0]} chosen evenly, the last kept)"
+    wanted = method_observations(method)
+    chose = "" if wanted is None or wanted >= lengths.max() else f" ({wanted} chosen evenly, the last kept)"
+    omitted = int((seqs.n_obs - result.observations).sum()) if wanted is None else 0
+    if omitted:
+        chose += f" ({omitted} missed detections omitted)"
     where = "standard output" if path is None else str(path)
     say(
         f"{result.method} on {seqs.source}: {len(seqs)} sequence{'' if len(seqs) == 1 else 's'} "
         f"of {span} observations{chose}; "
         f"depths written to {where}"
     )
-    fallbacks = [f"{k} {v}" for k, v in result.counts.items() if isinstance(v, int) and v]
-    notes = [f"{k} {v}" for k, v in result.counts.items() if isinstance(v, str)]
-    say(f"  fallbacks: {', '.join(fallbacks) or 'none'}" + "".join(f"; {n}" for n in notes))
+    say(f"  {report_line(method, result.counts)}")
+    empty = [r for r in result.reasons if r]
+    if empty:
+        say(f"  no depth for {len(empty)} of {len(seqs)} sequences (the reason column says why)")
     if seqs.ignored_columns:
         say(f"  ignored columns: {', '.join(seqs.ignored_columns)}")
     if seqs.oriented:
@@ -162,7 +214,7 @@ def predict(
         say(
             f"warning: {nonpositive} estimated depths are zero or negative (no valid solution for those sequences)"
         )
-    if np.isfinite(result.truth).any():
+    if (np.isfinite(result.truth) & np.isfinite(result.depth)).any():
         say(error_summary(result.truth, result.depth))
 
 

@@ -100,7 +100,7 @@ def score_depths(
             "camera": ...,  # one entry per set of the benchmark:
             "object": ...,  #   odmd-v1, odmd-paper: normal, camera, object, robot
             "robot": ...,   #   odms-detection: normal, perturb, robot, driving
-        }
+        }                   #   kitti-tracking: vehicle, person
 
     - keys: the benchmark's set names, each once (or those of ``sets``); no other key;
     - values: 1-D array-likes of real numbers (int or float dtype), one per example of

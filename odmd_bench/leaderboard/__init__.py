@@ -1,5 +1,11 @@
 """The leaderboard: entries re-scored by the evaluator, rank groups, tables, JSON, plot.
 
+Only the entries are committed (``leaderboard/entries/``, with ``reported.yaml`` and
+``audits/``); the tables, JSON and plot are derived by :func:`build` and written by
+:func:`write` (by default into ``leaderboard/build/``, ignored by git), so that two entry
+pull requests never touch the same file. Each entry records its predictions' SHA-256 and
+its scores; :func:`check` re-scores every entry and compares them.
+
 The package, by concern:
 
 - :mod:`~odmd_bench.leaderboard.specs`: the boards, as data (:data:`BOARDS`).
@@ -10,13 +16,13 @@ The package, by concern:
 - :mod:`~odmd_bench.leaderboard.files`: the folder: discovery, reading entries (no
   symbolic links); :mod:`~odmd_bench.leaderboard.add` adds one.
 - :mod:`~odmd_bench.leaderboard.board`: loading each board's sets once and scoring
-  (:func:`~odmd_bench.leaderboard.board.score_predictions` is the one call into the
+  (:func:`~odmd_bench.leaderboard.board.score_csv` is the one call into the
   evaluator); :mod:`~odmd_bench.leaderboard.ranking`: rank groups, pure.
 - :mod:`~odmd_bench.leaderboard.reported`: results printed in papers (``reported.yaml``).
-- :mod:`~odmd_bench.leaderboard.render`: :func:`build` and the markdown, JSON and README
+- :mod:`~odmd_bench.leaderboard.render`: :func:`build` and the markdown and JSON
   texts; :mod:`~odmd_bench.leaderboard.plot`: the plot; :mod:`~odmd_bench.leaderboard.diff`:
   :func:`check` (:func:`check_report` tells invalid input from differences), naming
-  each file, row and field that differs;
+  each entry and field whose recorded value differs from its re-scoring;
   :mod:`~odmd_bench.leaderboard.output`: :func:`write`, the outputs written at once;
   :mod:`~odmd_bench.leaderboard.dataframe`: :func:`frame`, the leaderboard in pandas.
 
@@ -37,7 +43,14 @@ and a row that starts a new group is distinguishably worse than the previous gro
 from odmd_bench.leaderboard.add import add_entry
 from odmd_bench.leaderboard.board import Board, Row, collect, data_version, load_board_data, score_entry
 from odmd_bench.leaderboard.dataframe import frame
-from odmd_bench.leaderboard.diff import CheckReport, check, check_report, diff_json, diff_markdown
+from odmd_bench.leaderboard.diff import (
+    CheckReport,
+    check,
+    check_report,
+    diff_json,
+    diff_markdown,
+    entry_differences,
+)
 from odmd_bench.leaderboard.entry import (
     ENTRY_FILES,
     MAX_LENGTHS,
@@ -47,22 +60,20 @@ from odmd_bench.leaderboard.entry import (
     EntryMeta,
 )
 from odmd_bench.leaderboard.files import (
+    BUILD,
     ENTRIES,
     JSON_FILE,
     MARKDOWN,
     MAX_PREDICTIONS_BYTES,
     PLOT,
     PLOT_SOURCE_KEY,
-    README,
-    README_END,
-    README_START,
     board_digest,
+    build_folder,
     discover,
     entry_file_problems,
     find_root,
     plot_source,
     read_entry,
-    readme_path,
     validate_entry,
 )
 from odmd_bench.leaderboard.output import write
@@ -73,13 +84,13 @@ from odmd_bench.leaderboard.render import (
     build,
     render_json,
     render_markdown,
-    render_readme_block,
 )
 from odmd_bench.leaderboard.reported import REPORTED, ReportedResult, read_reported
 from odmd_bench.leaderboard.specs import BOARDS, BoardSpec
 
 __all__ = [
     "BOARDS",
+    "BUILD",
     "ENTRIES",
     "ENTRY_FILES",
     "JSON_DECIMALS",
@@ -93,9 +104,6 @@ __all__ = [
     "RANK_CONFIDENCE",
     "RANK_RESAMPLES",
     "RANK_SEED",
-    "README",
-    "README_END",
-    "README_START",
     "REPORTED",
     "REQUIRED_FIELDS",
     "Board",
@@ -110,6 +118,7 @@ __all__ = [
     "add_entry",
     "board_digest",
     "build",
+    "build_folder",
     "check",
     "check_report",
     "collect",
@@ -117,6 +126,7 @@ __all__ = [
     "diff_json",
     "diff_markdown",
     "discover",
+    "entry_differences",
     "entry_file_problems",
     "find_root",
     "frame",
@@ -125,10 +135,8 @@ __all__ = [
     "rank_groups",
     "read_entry",
     "read_reported",
-    "readme_path",
     "render_json",
     "render_markdown",
-    "render_readme_block",
     "score_entry",
     "validate_entry",
     "write",

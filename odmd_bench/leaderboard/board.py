@@ -1,6 +1,6 @@
 """Scoring: each board's sets loaded once, every entry re-scored by the evaluator and ranked.
 
-:func:`score_predictions` is the one place that calls the evaluator.
+:func:`score_csv` is the one place that calls the evaluator.
 """
 
 from __future__ import annotations
@@ -70,14 +70,23 @@ class Board:
 
 
 def data_version(examples: Mapping[str, Examples]) -> str:
-    """How the sets were made, e.g. ``generator v1 + imported robot`` or ``original release``."""
+    """How the sets were made, e.g. ``generator v1 + imported robot``, ``original release`` or ``KITTI windows, rules v1``."""
     parts = []
     gens = sorted(
         {int(ex.attrs["generator_version"]) for ex in examples.values() if "generator_version" in ex.attrs}
     )
     if gens:
         parts.append("generator " + ", ".join(f"v{g}" for g in gens))
-    imported = [s for s, ex in examples.items() if "generator_version" not in ex.attrs]
+    rules = sorted(
+        {int(ex.attrs["rules_version"]) for ex in examples.values() if "rules_version" in ex.attrs}
+    )
+    if rules:  # kitti-tracking: windows cut from KITTI by versioned rules (odmd_bench.kitti.windows)
+        parts.append("KITTI windows, rules " + ", ".join(f"v{r}" for r in rules))
+    imported = [
+        s
+        for s, ex in examples.items()
+        if "generator_version" not in ex.attrs and "rules_version" not in ex.attrs
+    ]
     if imported and gens:
         parts.append("imported " + ", ".join(imported))
     elif imported:
@@ -123,24 +132,44 @@ def load_board_data(
 def score_predictions(data: bytes, entry: Entry, examples: Mapping[str, Examples]) -> EvaluationResult:
     """Validate and score an entry's predictions (the CSV's bytes) against its sets.
 
-    This is the one call into the evaluator.
-
     Raises:
         ValidationError: When the file fails the evaluator's validation, or holds
             another split than the entry's.
+    """
+    return score_csv(
+        data,
+        examples,
+        key=entry.key,
+        file_name=entry.predictions.name,
+        benchmark=entry.benchmark,
+        split=entry.split,
+    )
+
+
+def score_csv(
+    data: bytes, examples: Mapping[str, Examples], *, key: str, file_name: str, benchmark: str, split: str
+) -> EvaluationResult:
+    """Validate and score predictions (the CSV's bytes) of the entry ``key`` against its sets.
+
+    This is the one call into the evaluator (``add`` scores a file with it before the
+    entry's metadata exists).
+
+    Raises:
+        ValidationError: When the file fails the evaluator's validation, or holds
+            another split than ``split``.
     """
     from odmd_bench.evaluation.coverage import check_coverage
     from odmd_bench.evaluation.parse import parse_predictions
     from odmd_bench.evaluation.scoring import score
 
-    title = f"entry {entry.key}: {entry.predictions.name} fails validation"
-    name = entry.predictions.name.removesuffix(".gz")
+    title = f"entry {key}: {file_name} fails validation"
+    name = file_name.removesuffix(".gz")
     try:
-        parsed = parse_predictions(data, name=name, benchmark=entry.benchmark, strict=False)
+        parsed = parse_predictions(data, name=name, benchmark=benchmark, strict=False)
     except ValidationError as e:
         raise ValidationError(title, e.problems or [e.message]) from None
-    if parsed.split is not None and parsed.split != entry.split:
-        wrong = f"the file holds split {parsed.split!r} but the entry is for {entry.split!r}"
+    if parsed.split is not None and parsed.split != split:
+        wrong = f"the file holds split {parsed.split!r} but the entry is for {split!r}"
         raise ValidationError(title, [wrong, *parsed.problems.lines()])
     try:
         preds = check_coverage(parsed, {s: len(ex) for s, ex in examples.items()}, board=True)

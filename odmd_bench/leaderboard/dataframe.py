@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from odmd_bench.errors import UsageError
-from odmd_bench.leaderboard.files import JSON_FILE, find_root
+from odmd_bench.leaderboard.files import JSON_FILE, build_folder, find_root
 from odmd_bench.leaderboard.specs import SET_TITLES
 
 if TYPE_CHECKING:
@@ -73,23 +73,25 @@ def frame(source: str | os.PathLike[str] | Built | None = None, *, reported: boo
     ``source`` (the entry's folder, or the publication of a reported result).
 
     Args:
-        source: a leaderboard folder, whose committed ``leaderboard.json`` is read
-            (default: the ``leaderboard/`` folder found from the current folder), or
-            the result of :func:`~odmd_bench.leaderboard.build`.
+        source: a folder holding a ``leaderboard.json`` written by ``odmd-bench leaderboard
+            build`` (``-o DIR``), or a leaderboard folder, whose ``build/leaderboard.json``
+            is read (default: the ``leaderboard/`` folder found from the current folder),
+            or the result of :func:`~odmd_bench.leaderboard.build`.
         reported: also the results reported in papers (``reported`` true, no position
             or group; ``method`` is the id of the entry that reproduces it, if any).
 
     Raises:
-        UsageError: When the folder has no readable ``leaderboard.json``.
+        UsageError: When there is no readable ``leaderboard.json`` there (the views are
+            not committed: ``odmd-bench leaderboard build`` writes it).
         ModuleNotFoundError: When pandas is not installed.
 
     Example:
-        >>> from odmd_bench.leaderboard import find_root
-        >>> df = frame(find_root())  # the leaderboard folder of the checkout you are in
-        >>> df.columns[:4].tolist()
+        >>> import pathlib, tempfile
+        >>> from odmd_bench.leaderboard.render import render_json
+        >>> folder = pathlib.Path(tempfile.mkdtemp())
+        >>> _ = (folder / "leaderboard.json").write_text(render_json([], []), encoding="utf-8")
+        >>> frame(folder).columns[:4].tolist()  # a board without entries: no rows
         ['benchmark', 'split', 'position', 'group']
-        >>> bool((df.groupby(["benchmark", "split"]).position.min() == 1).all())  # best first
-        True
     """
     import pandas as pd
 
@@ -99,7 +101,10 @@ def frame(source: str | os.PathLike[str] | Built | None = None, *, reported: boo
         text = source.json_text
     else:
         here = "give the folder: frame('path/to/odmd-bench/leaderboard')"
-        path = Path(source if source is not None else find_root(otherwise=here)) / JSON_FILE
+        folder = Path(source if source is not None else find_root(otherwise=here))
+        path = folder / JSON_FILE
+        if not path.is_file() and (build_folder(folder) / JSON_FILE).is_file():
+            path = build_folder(folder) / JSON_FILE
         try:
             text = path.read_text(encoding="utf-8")
         except OSError as e:

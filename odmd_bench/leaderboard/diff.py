@@ -1,7 +1,12 @@
-"""``leaderboard check``: what differs between the committed files and a fresh build.
+"""``leaderboard check``: what differs between what the entries record and a fresh re-scoring.
 
-Differences are named precisely: JSON by field path (list items by method or board),
-markdown tables by table, row and column, so that a changed digit reads as one line.
+Each entry records the SHA-256 of its predictions and its scores (written by ``add``);
+``check`` re-scores every entry and names each recorded value that differs (entry, field,
+recorded and recomputed value). The views (``LEADERBOARD.md``, ``leaderboard.json``) are
+derived and not committed, so nothing else can differ. :func:`diff_json` and
+:func:`diff_markdown` name differences between two texts precisely (JSON by field path,
+markdown tables by table, row and column), for the audits' records and for anyone
+comparing two builds.
 """
 
 from __future__ import annotations
@@ -14,8 +19,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from odmd_bench.errors import ValidationError
-from odmd_bench.leaderboard.files import JSON_FILE, MARKDOWN, README, plot_problem, stale_readme
+from odmd_bench.leaderboard.board import Board, Row
+from odmd_bench.leaderboard.files import ENTRIES, JSON_FILE, MARKDOWN
 from odmd_bench.leaderboard.render import build
+from odmd_bench.leaderboard.specs import rounded
 
 #: Longest value a difference line shows.
 SHOWN_VALUE = 500
@@ -145,6 +152,46 @@ def diff_markdown(committed: str, built: str, name: str = MARKDOWN, limit: int =
     return out
 
 
+def recorded_scores(row: Row) -> dict[str, float]:
+    """The ``scores`` ``add`` records for a scored entry: each set's mean percent error and ``all``.
+
+    Rounded as ``leaderboard.json`` keeps floats (:data:`~odmd_bench.leaderboard.specs.JSON_DECIMALS`).
+    """
+    res = row.result
+    out = {s: rounded(res.sets[s]["percent_error"]["mean"]) for s in res.sets}
+    out["all"] = rounded(res.all_percent_error_mean)
+    return out
+
+
+def entry_differences(boards: list[Board]) -> list[str]:
+    """Where an entry's recorded ``predictions_sha256`` or ``scores`` differ from its re-scoring.
+
+    One line per field: ``entries/M/B/entry.yaml: scores.camera: recorded X, re-scored Y``.
+    """
+    out = []
+    for bd in boards:
+        for row in bd.rows:
+            meta = row.entry.meta
+            where = f"{ENTRIES}/{row.entry.key}/" + next(
+                (n for n in ("entry.yaml", "entry.json") if (row.entry.folder / n).is_file()), "entry.yaml"
+            )
+            sha = str(row.result.provenance["predictions_sha256"])
+            if meta.predictions_sha256 != sha:
+                out.append(
+                    f"{where}: predictions_sha256: recorded {meta.predictions_sha256[:16]}..., the "
+                    f"predictions file {meta.predictions} has {sha[:16]}... (a changed prediction)"
+                )
+            fresh = recorded_scores(row)
+            for k in [*fresh, *(k for k in meta.scores if k not in fresh)]:
+                if k not in meta.scores:
+                    out.append(f"{where}: scores.{k}: missing, re-scored {fresh[k]!r}")
+                elif k not in fresh:
+                    out.append(f"{where}: scores.{k}: recorded {meta.scores[k]!r}, not a set of the board")
+                elif rounded(meta.scores[k]) != fresh[k]:
+                    out.append(f"{where}: scores.{k}: recorded {meta.scores[k]!r}, re-scored {fresh[k]!r}")
+    return out
+
+
 @dataclass(frozen=True)
 class CheckReport:
     """What :func:`check_report` found; both empty when the leaderboard is right.
@@ -168,13 +215,12 @@ def check(
     *,
     n_resamples: int | None = None,
     progress: Callable[[str], None] | None = None,
-    plot: bool = True,
 ) -> list[str]:
     """Everything that is wrong with the leaderboard folder, one line each (empty: all good).
 
     The lines of :func:`check_report`, the invalid input first.
     """
-    report = check_report(root, data_dir, original, n_resamples=n_resamples, progress=progress, plot=plot)
+    report = check_report(root, data_dir, original, n_resamples=n_resamples, progress=progress)
     return report.invalid + report.differences
 
 
@@ -185,15 +231,14 @@ def check_report(
     *,
     n_resamples: int | None = None,
     progress: Callable[[str], None] | None = None,
-    plot: bool = True,
 ) -> CheckReport:
     """What is wrong with the leaderboard folder: invalid input apart from differences.
 
-    Entry problems (metadata, data hashes, predictions) come first; when there are
-    none, the committed ``LEADERBOARD.md`` and ``leaderboard.json`` (and the summary
-    between the markers of ``../README.md``, where it has them) are compared with what
-    ``build`` would write now, and ``leaderboard.png`` must be there and record
-    the SHA-256 of that JSON (its pixels are not compared: they depend on matplotlib).
+    Every entry is read, validated and re-scored, and the board is built as ``build``
+    builds it (rank groups, the recorded audits, ``reported.yaml``); problems there are
+    invalid input. Then each entry's recorded ``predictions_sha256`` and ``scores`` are
+    compared with the re-scoring (:func:`entry_differences`): a changed prediction or a
+    changed number is a difference.
 
     Args:
         root: the leaderboard folder.
@@ -201,34 +246,9 @@ def check_report(
         original: the original release's folder, imported from when a set is missing.
         n_resamples: resamples of the rank groups' comparison (default: the board's).
         progress: called with one line per board once it is scored.
-        plot: whether ``leaderboard.png`` must be there (``leaderboard check``: always).
     """
-    root = Path(root)
     try:
-        built = build(root, data_dir, original, n_resamples=n_resamples, progress=progress)
+        built = build(Path(root), data_dir, original, n_resamples=n_resamples, progress=progress)
     except ValidationError as e:
         return CheckReport(invalid=e.problems or [e.message])
-    problems = []
-    for name, text, differ in (
-        (MARKDOWN, built.markdown, diff_markdown),
-        (JSON_FILE, built.json_text, diff_json),
-    ):
-        path = root / name
-        if not path.is_file():
-            problems.append(f"{name} is missing; run `odmd-bench leaderboard build`")
-            continue
-        committed = path.read_text(encoding="utf-8")
-        if committed != text:
-            found = differ(committed, text, name)
-            problems.extend(found or [f"{name}: differs from what build writes (whitespace or line ends)"])
-    stale_plot = plot_problem(root, built.json_text, required=plot)
-    if stale_plot is not None:
-        problems.append(stale_plot)
-    stale = stale_readme(root, built.readme_block)
-    if stale is not None:
-        _, committed, rebuilt = stale
-        found = diff_markdown(committed, rebuilt, README)
-        problems.extend(
-            found or [f"{README}: the leaderboard summary differs from what build writes (whitespace)"]
-        )
-    return CheckReport(differences=problems)
+    return CheckReport(differences=entry_differences(list(built.boards)))

@@ -16,6 +16,7 @@ from odmd_bench.leaderboard.rules import (
     ENTRY_FILES,
     MAX_LENGTHS,
     OPTIONAL_FIELDS,
+    PLUGIN_FIELDS,
     REQUIRED_FIELDS,
     SPEED_FIELDS,
     code_problems,
@@ -57,7 +58,14 @@ class EntryMeta:
     sets_content_sha256: Mapping[str, str]
     calibrated: bool
     predictions: str
+    predictions_sha256: str
+    scores: Mapping[str, float]
+    uses_test_labels: bool
+    selected_on: str
+    training_kind: str
     notes: str | None = field(default=None)
+    plugin: Mapping[str, str] | None = field(default=None)
+    options: Mapping[str, str | int | float | bool] | None = field(default=None)
     parameters: int | None = field(default=None)
     speed: Mapping[str, object] | None = field(default=None)
 
@@ -70,8 +78,13 @@ class EntryMeta:
         """The fields as a plain mapping, in the documented order (optional ones only when set)."""
         out: dict[str, object] = {k: getattr(self, k) for k in REQUIRED_FIELDS}
         out["sets_content_sha256"] = dict(self.sets_content_sha256)
+        out["scores"] = dict(self.scores)
         if self.notes is not None:
             out["notes"] = self.notes
+        if self.plugin is not None:
+            out["plugin"] = {k: self.plugin[k] for k in PLUGIN_FIELDS if k in self.plugin}
+        if self.options is not None:
+            out["options"] = dict(self.options)
         if self.parameters is not None:
             out["parameters"] = self.parameters
         if self.speed is not None:
@@ -133,10 +146,11 @@ def validate_meta(
     if problems:
         return None, problems
     text = {k: v for k in MAX_LENGTHS if isinstance(v := data.get(k), str)}
-    hashes = data["sets_content_sha256"]
+    hashes, scores = data["sets_content_sha256"], data["scores"]
     day = parse_date(data["date"])[0]
-    if not isinstance(hashes, dict) or day is None:  # cannot happen: checked above
-        return None, ["sets_content_sha256 or date cannot be used"]
+    if not isinstance(hashes, dict) or not isinstance(scores, dict) or day is None:  # checked above
+        return None, ["sets_content_sha256, scores or date cannot be used"]
+    plugin, options = data.get("plugin"), data.get("options")
     meta = EntryMeta(
         method=text["method"],
         name=text["name"],
@@ -151,7 +165,14 @@ def validate_meta(
         sets_content_sha256={str(s): str(h) for s, h in hashes.items()},
         calibrated=data["calibrated"] is True,
         predictions=text["predictions"],
+        predictions_sha256=text["predictions_sha256"],
+        scores={str(k): float(v) for k, v in scores.items()},
+        uses_test_labels=data["uses_test_labels"] is True,
+        selected_on=text["selected_on"],
+        training_kind=text["training_kind"],
         notes=text.get("notes"),
+        plugin={str(k): str(v) for k, v in plugin.items()} if isinstance(plugin, dict) else None,
+        options=dict(options) if isinstance(options, dict) else None,
         parameters=parameters if isinstance(parameters := data.get("parameters"), int) else None,
         speed=dict(speed) if isinstance(speed := data.get("speed"), dict) else None,
     )

@@ -1,7 +1,9 @@
-"""Writing a built leaderboard: ``LEADERBOARD.md``, ``leaderboard.json``, the README block, the plot.
+"""Writing a built leaderboard: ``LEADERBOARD.md``, ``leaderboard.json`` and the plot, into one folder.
 
 Above :mod:`~odmd_bench.leaderboard.render` and :mod:`~odmd_bench.leaderboard.plot`, which
-draw what it writes; the folder's layout is :mod:`~odmd_bench.leaderboard.files`'.
+draw what it writes. The views are derived from the entries and never committed: by
+default they go to ``leaderboard/build/`` (:func:`~odmd_bench.leaderboard.files.build_folder`,
+ignored by git).
 """
 
 from __future__ import annotations
@@ -11,41 +13,45 @@ import os
 from pathlib import Path
 
 from odmd_bench.data.atomic import atomic_texts
-from odmd_bench.leaderboard.files import JSON_FILE, MARKDOWN, PLOT, board_digest, plot_problem, stale_readme
+from odmd_bench.leaderboard.files import JSON_FILE, MARKDOWN, PLOT, board_digest, plot_source
 from odmd_bench.leaderboard.render import Built
 
 
-def write(root: str | os.PathLike[str], built: Built, *, plot: bool = True) -> list[str]:
-    """Write ``LEADERBOARD.md``, ``leaderboard.json``, the README block and (with matplotlib) the plot.
+def write(folder: str | os.PathLike[str], built: Built, *, plot: bool = True) -> list[str]:
+    """Write ``LEADERBOARD.md``, ``leaderboard.json`` and (with matplotlib) ``leaderboard.png`` into ``folder``.
+
+    The folder is made where missing. Without matplotlib the plot is skipped (and said):
+    nothing checks it, so the core install builds the rest.
 
     Returns:
         One line per thing done or skipped.
     """
-    root = Path(root)
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
     said = []
-    texts = [(root / MARKDOWN, built.markdown), (root / JSON_FILE, built.json_text)]
-    stale = stale_readme(root, built.readme_block)
-    if stale is not None:
-        texts.append((stale[0], stale[2]))
+    texts = [(folder / MARKDOWN, built.markdown), (folder / JSON_FILE, built.json_text)]
     if plot and importlib.util.find_spec("matplotlib") is None:
         plot = False
         said.append(
-            f"skipped the plot {root / PLOT}: matplotlib is not installed (pip install 'odmd-bench[plot]')"
+            f"skipped the plot {folder / PLOT}: matplotlib is not installed (pip install 'odmd-bench[plot]')"
         )
-    if not plot:
-        stale_plot = plot_problem(root, built.json_text)
-        if stale_plot is not None:
-            said.append(f"warning: {stale_plot}; `leaderboard check` fails until then")
+    stale = folder / PLOT
+    if not plot and stale.is_file() and not stale.is_symlink():
+        try:
+            drawn_from = plot_source(stale)
+        except OSError:
+            drawn_from = None
+        if drawn_from != board_digest(built.json_text):  # a plot of another board: not left beside it
+            stale.unlink()
+            said.append(f"removed {stale}: it was drawn from another board")
     # Every file, the plot included, is written before any replaces its old version: a
     # failure (a full disk, a file size limit, a file that cannot be replaced) leaves the
-    # board as it was, all of it.
-    with atomic_texts(texts, also=[root / PLOT] if plot else []) as figure:
+    # folder as it was, all of it.
+    with atomic_texts(texts, also=[folder / PLOT] if plot else []) as figure:
         if plot:
             from odmd_bench.leaderboard.plot import plot_boards
 
             plot_boards(built.boards, figure[0], source=board_digest(built.json_text))
-            said.append(f"wrote {root / PLOT}")
-    said[:0] = [f"wrote {root / MARKDOWN}", f"wrote {root / JSON_FILE}"] + (
-        [f"updated the leaderboard summary in {stale[0]}"] if stale is not None else []
-    )
+            said.append(f"wrote {folder / PLOT}")
+    said[:0] = [f"wrote {folder / MARKDOWN}", f"wrote {folder / JSON_FILE}"]
     return said

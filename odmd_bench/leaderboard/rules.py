@@ -17,6 +17,12 @@ from odmd_bench.leaderboard.specs import BOARDS
 
 #: Metadata files an entry folder may hold (exactly one of them).
 ENTRY_FILES: tuple[str, ...] = ("entry.yaml", "entry.json")
+#: The values of ``selected_on``: ``val`` (chosen on validation sets), ``test`` (chosen on the
+#: test sets: refused, a use of the test labels), ``nothing`` (no choice made on any data).
+SELECTED_ON: tuple[str, ...] = ("val", "test", "nothing")
+#: The values of ``training_kind``: ``none`` (nothing trained or fitted on data), ``generator``
+#: (generated examples, the ODMD/ODMS generator), ``real`` (recorded data), ``other``.
+TRAINING_KINDS: tuple[str, ...] = ("none", "generator", "real", "other")
 #: Fields every entry must have: name -> what is expected.
 REQUIRED_FIELDS: dict[str, str] = {
     "method": "the method's id (lowercase letters, digits, '.', '_', '-'), the same as its folder",
@@ -32,15 +38,42 @@ REQUIRED_FIELDS: dict[str, str] = {
     "sets_content_sha256": "{set: SHA-256 of the set's content} for every set the predictions were made for",
     "calibrated": "true if the method uses the camera intrinsics, else false",
     "predictions": "the predictions file in the entry folder (.csv or .csv.gz)",
+    "predictions_sha256": "SHA-256 of the predictions' CSV content (after gzip decompression), written by add",
+    "scores": "{set: mean percent error, ..., all: their mean}, written by add; check re-scores and compares",
+    "uses_test_labels": "whether the test labels were used in any way (training, tuning, selection); "
+    "must be false to be on the board",
+    "selected_on": f"what the method (weights, hyperparameters, checkpoint) was selected on: one of {', '.join(SELECTED_ON)}",
+    "training_kind": f"the kind of training data: one of {', '.join(TRAINING_KINDS)} "
+    "(the details go in training_data)",
 }
 #: Fields an entry may have.
 OPTIONAL_FIELDS: dict[str, str] = {
     "notes": "anything else a reader should know",
+    "plugin": "how to get a method not shipped in this repository: {requirement: NAME==VERSION} or "
+    "{source: FOLDER, module: MODULE} (plain .py files in FOLDER of the entry folder); module optional "
+    "with a requirement",
+    "options": "{option: value} the method's options the predictions were made with (text, numbers, true/false)",
     "parameters": "the number of trained parameters (network weights) the command runs, a whole number; "
     "0 for a method without trained weights",
     "speed": "{examples_per_second: a number > 0, device: the CPU or GPU model, command: the command "
     "that measured it}",
 }
+#: The keys of ``plugin``.
+PLUGIN_FIELDS: dict[str, str] = {
+    "requirement": "a pinned requirement NAME==VERSION, installed with pip install NAME==VERSION",
+    "source": "a folder in the entry folder holding the plug-in's plain .py files",
+    "module": "the module that is the method (dotted name), e.g. my_package.my_method",
+}
+#: Most options an entry records, and the longest option value (characters).
+MAX_OPTIONS = 20
+MAX_OPTION_CHARS = 300
+#: Limits of a plug-in's source folder: files, bytes per file, bytes in all.
+MAX_PLUGIN_FILES = 50
+MAX_PLUGIN_FILE_BYTES = 256 * 1024
+MAX_PLUGIN_BYTES = 1024 * 1024
+#: Scores agree when equal at this many decimals (``leaderboard.json``'s rounding).
+SCORE_DECIMALS = 6
+
 #: The fields of ``speed``: name -> what is expected.
 SPEED_FIELDS: dict[str, str] = {
     "examples_per_second": "examples predicted per second, a number > 0",
@@ -63,10 +96,26 @@ MAX_LENGTHS: dict[str, int] = {
     "benchmark": 40,
     "split": 40,
     "predictions": 40,
+    "predictions_sha256": 64,
+    "selected_on": 40,
+    "training_kind": 40,
     "notes": 1000,
 }
 #: Text fields that must fit on one line (the others may hold newlines, no other control characters).
-ONE_LINE: frozenset[str] = frozenset({"method", "name", "paper", "code", "benchmark", "split", "predictions"})
+ONE_LINE: frozenset[str] = frozenset(
+    {
+        "method",
+        "name",
+        "paper",
+        "code",
+        "benchmark",
+        "split",
+        "predictions",
+        "predictions_sha256",
+        "selected_on",
+        "training_kind",
+    }
+)
 #: How many characters of a value a message shows.
 SHOWN_CHARS = 60
 
@@ -75,6 +124,15 @@ _SHA256 = re.compile(r"[0-9a-f]{64}")
 _DATE = re.compile(r"\d{4}-\d{2}-\d{2}")
 _URL = re.compile(r"https?://\S+")
 _CONTROL = re.compile(r"[\x00-\x09\x0b-\x1f\x7f]")
+# A pinned requirement: a PEP 508 distribution name, ``==`` and a PEP 440 version (no
+# extras, URLs, markers or wildcards). packaging would parse all of PEP 508, but it is not
+# a dependency, and this one shape is all an entry may give.
+_REQUIREMENT = re.compile(
+    r"([A-Za-z0-9](?:[A-Za-z0-9._-]{0,98}[A-Za-z0-9])?)==([0-9][0-9A-Za-z.+!_-]{0,60})(?<!\*)"
+)
+_MODULE = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(?:\.[A-Za-z_][A-Za-z0-9_]*){0,9}")
+_OPTION = re.compile(r"[a-z][a-z0-9_]{0,39}")
+_FOLDER_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_-]{0,39}")
 
 
 def show(value: object) -> str:
@@ -255,8 +313,142 @@ def content_problems(data: Mapping[str, object]) -> list[str]:
         problems += _hash_problems(data["sets_content_sha256"], data.get("benchmark"))
     if "predictions" not in bad:
         problems += _predictions_problems(data["predictions"])
+    problems += honesty_problems(data, bad)
+    sha = data.get("predictions_sha256") if "predictions_sha256" not in bad else None
+    if isinstance(sha, str) and not _SHA256.fullmatch(sha):
+        problems.append(f"predictions_sha256 is not 64 lowercase hex digits: {show(sha)}")
+    if "scores" not in bad:
+        problems += scores_problems(data["scores"], data.get("benchmark"))
+    problems += plugin_problems(data.get("plugin"))
+    problems += options_problems(data.get("options"))
     problems += parameters_problems(data.get("parameters"))
     problems += speed_problems(data.get("speed"))
+    return problems
+
+
+def honesty_problems(data: Mapping[str, object], bad: set[str] | frozenset[str] = frozenset()) -> list[str]:
+    """``uses_test_labels``, ``selected_on`` and ``training_kind``: declared, and allowed on the board.
+
+    The board ranks methods that never used the test labels: ``uses_test_labels: true`` and
+    ``selected_on: test`` (a choice made by the test labels) are refused, with the reason.
+    """
+    problems = []
+    used = data.get("uses_test_labels")
+    if used is not None and not isinstance(used, bool):
+        problems.append(f"uses_test_labels must be true or false, got {show(used)}")
+    elif used is True:
+        problems.append(
+            "uses_test_labels is true: the board ranks only methods that never used the test labels "
+            "(in training, tuning or selection); such a result can be cited in reported.yaml instead"
+        )
+    selected = data.get("selected_on") if "selected_on" not in bad else None
+    if isinstance(selected, str) and selected not in SELECTED_ON:
+        problems.append(f"selected_on {show(selected)} is not one of {', '.join(SELECTED_ON)}")
+    elif selected == "test":
+        problems.append(
+            "selected_on is test: a method chosen on the test sets has used their labels; select on val "
+            "(or on nothing) and make the predictions again"
+        )
+    kind = data.get("training_kind") if "training_kind" not in bad else None
+    if isinstance(kind, str) and kind not in TRAINING_KINDS:
+        problems.append(f"training_kind {show(kind)} is not one of {', '.join(TRAINING_KINDS)}")
+    return problems
+
+
+def scores_problems(value: object, bench: object) -> list[str]:
+    """``scores``: every set of the benchmark and ``all``, each a finite number >= 0."""
+    if not isinstance(value, dict):
+        return [f"scores must map each set (and all) to its mean percent error, got {show(value)}"]
+    problems = []
+    if isinstance(bench, str) and bench in BENCHMARKS:
+        wanted = (*BENCHMARKS[bench].sets, "all")
+        missing = [s for s in wanted if s not in value]
+        extra = [show(s) for s in value if s not in wanted]
+        if missing:
+            problems.append(f"scores lack {', '.join(missing)}; run `odmd-bench leaderboard add` again")
+        if extra:
+            problems.append(f"scores name unknown sets {', '.join(extra)}; {bench} has {', '.join(wanted)}")
+    for k, v in value.items():
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0 <= v < float("inf"):
+            problems.append(f"scores of {show(k)} must be a number >= 0, got {show(v)}")
+    return problems
+
+
+def plugin_problems(value: object) -> list[str]:
+    """``plugin``: absent, or ``{requirement}`` / ``{source, module}`` (``module`` optional with a requirement).
+
+    Where the source folder is and what it holds is checked with the entry's files
+    (:func:`odmd_bench.leaderboard.files.read_entry`).
+    """
+    if value is None:
+        return []
+    if not isinstance(value, dict):
+        return [f"plugin must be a mapping {OPTIONAL_FIELDS['plugin']}, got {show(value)}"]
+    problems = [
+        f"plugin: unknown field {show(k)}; the fields are {', '.join(PLUGIN_FIELDS)}"
+        for k in value
+        if k not in PLUGIN_FIELDS
+    ]
+    for k in PLUGIN_FIELDS:
+        v = value.get(k)
+        if k in value and (not isinstance(v, str) or _CONTROL.search(v) or "\n" in v):
+            problems.append(f"plugin: {k} must be one line of text, got {show(v)}")
+    given = [k for k in ("requirement", "source") if k in value]
+    if len(given) != 1:
+        problems.append("plugin must give exactly one of requirement (NAME==VERSION) and source (a folder)")
+    requirement, source, module = (value.get(k) for k in PLUGIN_FIELDS)
+    if isinstance(requirement, str) and not _REQUIREMENT.fullmatch(requirement):
+        problems.append(
+            f"plugin: requirement {show(requirement)} must be pinned as NAME==VERSION (== only; no "
+            "extras, URL, marker or wildcard), so that everyone installs the same code"
+        )
+    if isinstance(source, str) and not _FOLDER_NAME.fullmatch(source):
+        problems.append(
+            f"plugin: source {show(source)} must be the name of a folder in the entry folder "
+            "(letters, digits, '_', '-'; not a path)"
+        )
+    if "source" in value and "module" not in value:
+        problems.append("plugin: a source needs module, the module in it that is the method")
+    if isinstance(module, str) and not _MODULE.fullmatch(module):
+        problems.append(f"plugin: module {show(module)} is not a dotted module name")
+    return problems
+
+
+def requirement_name(requirement: str) -> str | None:
+    """The distribution name of a pinned requirement ``NAME==VERSION`` (None if it is not one)."""
+    m = _REQUIREMENT.fullmatch(requirement)
+    return m.group(1) if m else None
+
+
+def options_problems(value: object) -> list[str]:
+    """``options``: absent, or at most :data:`MAX_OPTIONS` ``name: value`` pairs.
+
+    A name is lowercase letters, digits and ``_`` (the keyword the method takes); a value
+    is one line of text (at most :data:`MAX_OPTION_CHARS` characters), a number or true/false.
+    """
+    if value is None:
+        return []
+    if not isinstance(value, dict):
+        return [f"options must be a mapping {OPTIONAL_FIELDS['options']}, got {show(value)}"]
+    problems = []
+    if len(value) > MAX_OPTIONS:
+        problems.append(f"options holds {len(value)} options; at most {MAX_OPTIONS} are allowed")
+    for k, v in value.items():
+        if not isinstance(k, str) or not _OPTION.fullmatch(k):
+            problems.append(
+                f"options: name {show(k)} must be lowercase letters, digits and '_' (the method's keyword)"
+            )
+        if isinstance(v, str):
+            if len(v) > MAX_OPTION_CHARS or not v or _CONTROL.search(v) or "\n" in v:
+                problems.append(
+                    f"options: the value of {show(k)} must be one line of 1 to {MAX_OPTION_CHARS} characters"
+                )
+        elif isinstance(v, float) and not abs(v) < float("inf"):
+            problems.append(f"options: the value of {show(k)} must be a finite number")
+        elif not isinstance(v, (bool, int, float)):
+            problems.append(
+                f"options: the value of {show(k)} must be text, a number or true/false, got {show(v)}"
+            )
     return problems
 
 

@@ -14,6 +14,8 @@ SET_TITLES: dict[str, str] = {
     "robot": "Robot",
     "perturb": "Perturb",
     "driving": "Driving",
+    "vehicle": "Vehicle",
+    "person": "Person",
 }
 
 
@@ -49,6 +51,9 @@ BOARDS: tuple[BoardSpec, ...] = (
     BoardSpec("odmd-paper", "test", ("normal", "camera", "object", "robot"), "ODMD, the original release"),
     BoardSpec("odmd-v1", "test", ("normal", "camera", "object", "robot"), "ODMD, generator v1"),
     BoardSpec("odms-detection", "test", ("normal", "perturb", "robot", "driving"), "ODMS converted to boxes"),
+    BoardSpec(
+        "kitti-tracking", "test", ("vehicle", "person"), "KITTI tracking, static objects (real driving)"
+    ),
 )
 
 

@@ -68,7 +68,11 @@ def percent_errors(
     shape: Shape = "plane",
     n: int = N_SCENES,
 ) -> np.ndarray:
-    """(n,) percent errors of ``method`` on a scene set, run as ``predict`` runs it."""
+    """(n,) percent errors of ``method`` on a scene set, run as ``predict`` runs it.
+
+    Every sequence is scored, a fallback's stand-in depth included (as the benchmarks
+    score them; ``predict`` writes no depth there, with the reason).
+    """
     from odmd_bench.predict import predict_sequences
 
     if isinstance(scene, SceneSet):
@@ -78,7 +82,7 @@ def percent_errors(
     s = make_scenes(n, motion, turn=turn, noise=noise, rng=seed, shape=shape)
     seqs = read_sequences(s.csv().encode(), IMAGE_SIZE, INTRINSICS, carry=carry)  # type: ignore[arg-type]
     result = predict_sequences(seqs, method, **(options or {}))
-    return np.asarray(np.abs(result.depth / result.truth - 1) * 100)
+    return np.asarray(np.abs(np.asarray(result.method_depth) / result.truth - 1) * 100)
 
 
 def _cell(err: np.ndarray) -> str:

@@ -17,6 +17,13 @@ method is used outside what it can do.
 - Warned: a method outside its validity, as the method itself says
   (:func:`method_warnings`: DBox's absolute-depth configurations beyond the depths
   they were trained on, its z-only configurations on sideways motion).
+
+Elsewhere, by the same rule: the quaternions' convention is refused where another
+explains the boxes clearly better (:mod:`odmd_bench.predict.convention`, run by the
+reader), quaternions off unit length are refused with their lines
+(:mod:`odmd_bench.predict.sequence_rows`), and a method that needs forward motion gets
+no depth, with a warning, where the camera moved too little along its optical axis
+(:data:`odmd_bench.predict.MIN_FORWARD_SHARE`).
 """
 
 from __future__ import annotations

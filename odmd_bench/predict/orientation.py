@@ -73,6 +73,7 @@ def rotation_matrices(q: np.ndarray) -> np.ndarray:
         [1.0, 0.0, 0.0]
     """
     q = np.asarray(q, dtype=np.float64)
+    q = q / np.abs(q).max(axis=-1, keepdims=True)  # (first: no overflow in the squares)
     q = q / np.sqrt((q * q).sum(axis=-1, keepdims=True))
     x, y, z, w = np.moveaxis(q, -1, 0)
     r = np.empty(q.shape[:-1] + (3, 3))

@@ -34,6 +34,13 @@ position, ``motion``:
     straight ahead only (a walk towards the object).
 ``"free"``
     forward, sideways and up or down (a hand-held phone): the vertical travel 5 to 20 %.
+``"sideways"``
+    sideways only, as ``"ground"`` without its forward travel (a camera on a rail, a
+    car passing a sign): what the methods that read depth from the boxes' growth
+    cannot solve.
+
+``forward_travel`` sets the range of the forward travel (a share of the last depth;
+default 20 to 60 %).
 
 With ``turn`` (degrees) the camera also turns while moving: by ``turn`` at the first
 observation relative to the last, shrinking linearly to 0, about an axis near the
@@ -57,9 +64,9 @@ from odmd_bench.data.generator import as_rng
 from odmd_bench.errors import UsageError
 from odmd_bench.predict.orientation import quaternions, rotation_matrices
 
-Motion = Literal["ground", "forward", "free"]
+Motion = Literal["ground", "forward", "free", "sideways"]
 Shape = Literal["billboard", "plane", "ellipsoid"]
-MOTIONS: tuple[str, ...] = ("ground", "forward", "free")
+MOTIONS: tuple[str, ...] = ("ground", "forward", "free", "sideways")
 #: Object kinds: (width, height) in metres.
 OBJECTS: dict[str, tuple[float, float]] = {"car": (1.8, 1.5), "person": (0.5, 1.75), "sign": (0.6, 0.6)}
 IMAGE_SIZE = (640.0, 480.0)
@@ -138,6 +145,7 @@ def make_scenes(
     shape: Shape = "plane",
     image_size: tuple[float, float] = IMAGE_SIZE,
     intrinsics: tuple[float, float, float, float] = INTRINSICS,
+    forward_travel: tuple[float, float] = (0.2, 0.6),
 ) -> Scenes:
     """``n`` sequences of cars, people and signs (module docstring).
 
@@ -153,6 +161,8 @@ def make_scenes(
             ``"billboard"``.
         image_size: ``(W, H)`` of the camera's images (default 640 x 480).
         intrinsics: ``(fx, fy, cx, cy)`` (default fx = fy = 500 at the centre).
+        forward_travel: the range of the forward travel, a share of the last depth
+            (``"sideways"``: none).
 
     Returns:
         :class:`Scenes`, every object in view of every observation.
@@ -184,8 +194,10 @@ def make_scenes(
             axis=1,
         )
         travel = np.zeros((m, 3))
-        travel[:, 2] = -z * gen.uniform(0.2, 0.6, m)  # the first position is further back
-        if motion in ("ground", "free"):
+        travel[:, 2] = -z * gen.uniform(*forward_travel, m)  # the first position is further back
+        if motion == "sideways":
+            travel[:, 2] = 0.0
+        if motion in ("ground", "free", "sideways"):
             travel[:, 0] = z * gen.uniform(0.1, 0.3, m) * gen.choice([-1.0, 1.0], m)
         if motion == "free":
             travel[:, 1] = z * gen.uniform(0.05, 0.2, m) * gen.choice([-1.0, 1.0], m)

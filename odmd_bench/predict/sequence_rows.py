@@ -46,6 +46,20 @@ class Rows:
 UNIT_TOLERANCE = 1e-3
 
 
+def quaternion_norms(q: np.ndarray) -> np.ndarray:
+    """The lengths of quaternions (M, 4), without overflow or underflow (scaled by the largest component).
+
+    ``sqrt(sum q^2)`` overflows to infinity for components above about 1e154 (which the
+    unit check then let through) and underflows to 0 below 1e-154; the scaled form is
+    exact to rounding for any finite value. NaN where a component is NaN.
+    """
+    with np.errstate(invalid="ignore", divide="ignore"):
+        top = np.abs(q).max(axis=1)
+        safe = np.where(top > 0, top, 1.0)
+        unit = q / safe[:, None]
+        return top * np.sqrt((unit * unit).sum(axis=1))
+
+
 def header_columns(data: bytes, problems: Problems) -> tuple[list[str], dict[str, int]] | None:
     """The header's cells and each column's position.
 
@@ -213,14 +227,24 @@ def check_rows(rows: Rows, problems: Problems) -> None:
         if rows.orientation is not None:
             q = rows.orientation
             for j, c in enumerate(ORIENTATION_COLUMNS):
-                problems.add_lines(f"{c} is empty", np.isnan(q[:, j]), lines)
+                problems.add_lines(
+                    f"{c} is empty (a camera that does not turn, its positions in its own axes: "
+                    "cam_qx, cam_qy, cam_qz, cam_qw = 0, 0, 0, 1)",
+                    np.isnan(q[:, j]),
+                    lines,
+                )
                 problems.add_lines(f"{c} is not finite", np.isinf(q[:, j]), lines)
-            norm = np.sqrt((q * q).sum(axis=1))
+            norm = quaternion_norms(q)
+            off = np.isfinite(norm) & ~(np.abs(norm - 1) <= UNIT_TOLERANCE)
+            shown = np.empty(len(norm), dtype=object)  # the length, 6 significant digits
+            shown[off] = [f"{v:.6g}" for v in norm[off][: SHOWN + 1].tolist()] + [""] * max(
+                0, int(off.sum()) - SHOWN - 1
+            )
             problems.add_lines(
                 f"orientation not a unit quaternion (its length differs from 1 by more than {UNIT_TOLERANCE:g})",
-                np.isfinite(norm) & ~(np.abs(norm - 1) <= UNIT_TOLERANCE),
+                off,
                 lines,
-                np.round(norm, 6),
+                shown,
             )
         if rows.depth is not None:
             d = rows.depth

@@ -56,6 +56,14 @@ from odmd_bench.inputs.problems import SHOWN, Problems, show
 from odmd_bench.inputs.records import decode
 from odmd_bench.inputs.source import MAX_SEQUENCES_BYTES, cap_advice, input_limit, read_source, stdin_bytes
 from odmd_bench.predict.checks import fraction_boxes_problem
+from odmd_bench.predict.convention import (
+    Order,
+    Orientation,
+    as_camera_to_world,
+    check_choice,
+    compare,
+    convention_problem,
+)
 from odmd_bench.predict.orientation import (
     NO_TURN_DEGREES,
     Carry,
@@ -221,6 +229,8 @@ def read_sequences(
     *,
     normalized_boxes: bool = False,
     carry: Carry = "plane",
+    orientation: Orientation = "camera-to-world",
+    quaternion_order: Order = "xyzw",
 ) -> Sequences:
     """Read a sequences CSV (module docstring) strictly, naming every problem at once.
 
@@ -237,6 +247,11 @@ def read_sequences(
             without it (:mod:`odmd_bench.predict.checks`).
         carry: how the boxes of a turning camera are carried into the last
             observation's orientation (:mod:`odmd_bench.predict.orientation`).
+        orientation: the quaternions' convention, ``"camera-to-world"`` (the format's)
+            or ``"world-to-camera"`` (their inverse).
+        quaternion_order: ``"xyzw"`` (the format's) or ``"wxyz"`` (the scalar first).
+            A file whose boxes another convention explains clearly better is refused
+            (:mod:`odmd_bench.predict.convention`).
 
     Returns:
         :class:`Sequences`, each sequence's observations ordered by ``observation``;
@@ -245,11 +260,13 @@ def read_sequences(
 
     Raises:
         ValidationError: the file cannot be read as sequences (or is over the cap); one
-            line per kind of problem with its count and first lines (line 1 is the header).
-        UsageError: a bad ``image_size`` or ``intrinsics``.
+            line per kind of problem with its count and first lines (line 1 is the header);
+            or its orientations disagree with its boxes where another convention agrees.
+        UsageError: a bad ``image_size``, ``intrinsics``, ``orientation`` or ``quaternion_order``.
     """
     size = image_size_of(image_size)
     k = intrinsics_of(intrinsics)
+    check_choice(orientation, quaternion_order)
     limit, advice = input_limit(MAX_SEQUENCES_BYTES), cap_advice("a sequences file")
     if isinstance(source, bytes):
         data, where = read_source(source, limit=limit, title=_TITLE, kind="sequences", advice=advice)
@@ -294,14 +311,37 @@ def read_sequences(
     if normalized_boxes:
         rows.numbers[:, [1, 3]] *= size[0]
         rows.numbers[:, [2, 4]] *= size[1]
+    takes = [
+        order[starts[np.flatnonzero(counts == n)][:, None] + np.arange(n)] for n in np.unique(counts).tolist()
+    ]
+    unchecked: tuple[str, ...] = ()
+    if rows.orientation is not None and k is not None:
+        # The convention: the one given, unless the boxes refuse it (before any method runs).
+        given, others, sizes = compare(
+            [(rows.numbers[t][:, :, 1:5], rows.numbers[t][:, :, 5:8], rows.orientation[t]) for t in takes],
+            k,
+            orientation,
+            quaternion_order,
+        )
+        wrong = convention_problem(given, others, sizes, orientation, quaternion_order)
+        if wrong is not None:
+            raise ValidationError(title, [wrong])
+    elif rows.orientation is not None and not (np.abs(rows.orientation[:, :3]) < 1e-12).all():
+        unchecked = (
+            f"the quaternions' convention ({orientation}, {', '.join(quaternion_order)}) is not checked "
+            "without --intrinsics (the box sizes alone cannot tell): a world-to-camera or w-first "
+            "quaternion would put the camera's travel in the wrong axes and every depth would be wrong "
+            "(docs/own-data.md, checks before any method runs)",
+        )
+    if rows.orientation is not None:
+        rows.orientation = as_camera_to_world(rows.orientation, orientation, quaternion_order)
 
     attrs: dict[str, Any] = {"source_file": where}
     groups = []
     turn = np.zeros(len(names))
     unturned: list[str] = []
-    for n_obs in np.unique(counts).tolist():
+    for n_obs, take in zip(np.unique(counts).tolist(), takes, strict=True):
         index = np.flatnonzero(counts == n_obs)
-        take = order[starts[index][:, None] + np.arange(n_obs)]
         num = rows.numbers[take]
         corners, camera = num[:, :, 1:5], num[:, :, 5:8]
         extras: dict[str, np.ndarray] = {}
@@ -352,24 +392,48 @@ def read_sequences(
         source=where,
         ignored_columns=ignored,
         attrs=attrs,
-        warnings=_outside_image(rows.numbers[:, 1:5], rows.lines, size) + _pose_like(ignored),
+        warnings=_outside_image(rows.numbers[:, 1:5], rows.lines, size)
+        + _pose_like(ignored)
+        + _depth_like(ignored, "depth" in header)
+        + unchecked,
         turn=turn,
         oriented=rows.orientation is not None,
     )
 
 
 def _pose_like(ignored: tuple[str, ...]) -> tuple[str, ...]:
-    """A warning for each ignored column whose name looks like an orientation or a pose."""
-    out = []
+    """One warning naming the ignored columns whose names look like an orientation or a pose."""
+    found = []
     for name in ignored:
         low = name.lower()
         if low.startswith(("q", "rot")) or any(w in low for w in ("quat", "roll", "pitch", "yaw")):
-            out.append(
-                f"column {show(name)} looks like a camera orientation but is not read: the orientation is "
-                "read from cam_qx, cam_qy, cam_qz, cam_qw (a unit quaternion, x y z w, rotating camera "
-                "coordinates into the fixed frame; docs/own-data.md)"
-            )
-    return tuple(out)
+            found.append(name)
+    if not found:
+        return ()
+    many = len(found) > 1
+    return (
+        f"column{'s' if many else ''} {', '.join(show(n) for n in found)} look{'' if many else 's'} like a "
+        f"camera orientation but {'are' if many else 'is'} not read: the orientation is read from cam_qx, "
+        "cam_qy, cam_qz, cam_qw (a unit quaternion, x y z w, rotating camera coordinates into the fixed "
+        "frame; --quaternion-order wxyz and --orientation world-to-camera for the other conventions; "
+        "docs/own-data.md)",
+    )
+
+
+def _depth_like(ignored: tuple[str, ...], has_depth: bool) -> tuple[str, ...]:
+    """A warning where no ``depth`` column is read but an ignored one is named much like it."""
+    if has_depth:
+        return ()
+    import difflib
+
+    near = difflib.get_close_matches("depth", [n.lower() for n in ignored], n=1, cutoff=0.6)
+    if not near:
+        return ()
+    name = next(n for n in ignored if n.lower() == near[0])
+    return (
+        f"column {show(name)} is not read: did you mean `depth` (the true depth in metres, which the "
+        "estimates are scored against)? Without a column named depth no error is given",
+    )
 
 
 def _outside_image(corners: np.ndarray, lines: np.ndarray, size: tuple[float, float]) -> tuple[str, ...]:

@@ -1,6 +1,7 @@
 """The leaderboard as a static web site (``odmd-bench leaderboard site -o DIR``).
 
-The site, every file written from the committed board (nothing is fetched from elsewhere)::
+The site, every file written from the board built from the committed entries (nothing is
+fetched from elsewhere)::
 
     index.html                 a table per board (<table data-board="BENCHMARK-SPLIT">, a
                                <tr data-method="METHOD"> per entry); sorting and filtering by
@@ -8,12 +9,13 @@ The site, every file written from the committed board (nothing is fetched from e
     methods/METHOD.html        a page per method, across its boards
     reported.html              results printed in papers (never ranked)
     downloads/leaderboard.json, downloads/BOARD.csv
+    downloads/BENCHMARK.croissant.json   with ``croissant``: each ranked benchmark in Croissant
     predictions/METHOD/BOARD/  each entry's predictions file
     figures/                   error against depth per entry, accuracy against speed ([plot] extra)
     assets/site.css, site.js   the templates' companions (templates: site/templates/)
 
-Layers: :mod:`~odmd_bench.leaderboard.site.data` reads ``leaderboard.json`` and re-scores
-the entries beside it; :mod:`~odmd_bench.leaderboard.site.pages` renders the files
+Layers: :mod:`~odmd_bench.leaderboard.site.data` builds ``leaderboard.json`` from the
+entries, each re-scored; :mod:`~odmd_bench.leaderboard.site.pages` renders the files
 (numbers by :func:`~odmd_bench.leaderboard.render.format_number`, as ``LEADERBOARD.md``);
 :mod:`~odmd_bench.leaderboard.site.figures` draws. Nothing but the CLI imports this package.
 Two builds of one board give byte-identical files.
@@ -59,6 +61,7 @@ def build_site(
     figures: bool | None = None,
     source_url: str | None = None,
     n_resamples: int | None = None,
+    croissant: bool = False,
 ) -> tuple[dict[str, bytes], list[str]]:
     """The site's files for the leaderboard folder ``root``, and what was skipped.
 
@@ -69,6 +72,8 @@ def build_site(
         figures: draw the figures; None: where matplotlib is installed.
         source_url: where repository paths link to (see :func:`render_site`).
         n_resamples: resamples of the paired comparisons (default: the rank groups').
+        croissant: also write the Croissant description of each benchmark with a ranked
+            board (:mod:`odmd_bench.data.croissant`; its val and test sets are loaded, verified).
 
     Returns:
         ``({relative path: bytes}, [one line per thing skipped])``.
@@ -80,7 +85,25 @@ def build_site(
         if not have_plot:
             said.append("drew no figures: matplotlib is not installed (pip install 'odmd-bench[plot]')")
     site = load_site_data(root, data_dir, original, n_resamples=n_resamples)
-    return render_site(site, figures=figures, source_url=source_url), said
+    extra = _croissant_downloads(site, data_dir, original) if croissant else None
+    return render_site(site, figures=figures, source_url=source_url, extra_downloads=extra), said
+
+
+def _croissant_downloads(
+    site: SiteData, data_dir: str | os.PathLike[str] | None, original: str | os.PathLike[str] | None
+) -> dict[str, tuple[bytes, str]]:
+    """``{BENCHMARK.croissant.json: (bytes, what)}`` for each benchmark with a ranked board."""
+    from odmd_bench.data.croissant import SUFFIX, croissant, croissant_text
+    from odmd_bench.data.registry import get_benchmark
+    from odmd_bench.leaderboard.board import load_board_data
+
+    out = {}
+    for name in dict.fromkeys(b.spec.benchmark for b in site.boards if b.rows):
+        bench = get_benchmark(name)
+        doc, _ = croissant(bench, {s: load_board_data(name, s, data_dir, original) for s in bench.splits})
+        what = f"{name} described in Croissant 1.0 (odmd-bench describe --format croissant {name})"
+        out[f"{name}{SUFFIX}"] = (croissant_text(doc).encode("utf-8"), what)
+    return out
 
 
 #: The list of the files a build wrote, beside them (a later build removes only these).

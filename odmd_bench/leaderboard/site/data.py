@@ -1,10 +1,12 @@
-"""What the site shows: the committed ``leaderboard.json``, each entry re-scored beside it.
+"""What the site shows: the board built from the entries (``leaderboard.json``), each entry re-scored beside it.
 
-Every number printed comes from ``leaderboard.json`` (which ``leaderboard check`` proves
-is what a fresh build writes). The entries are re-scored here too, by the evaluator,
-because the method pages need the per-example errors (the figures, the paired
-comparisons); a re-scored statistic that differs from the JSON, or an entry missing from
-it, stops the site: it never shows numbers the board does not hold.
+The board is built from the committed entries as ``leaderboard build`` builds it (the
+views are not committed), and every number printed comes from its ``leaderboard.json``.
+An entry whose recorded SHA-256 or scores differ from its re-scoring (what ``leaderboard
+check`` fails on) stops the site. The method pages use the entries' re-scored results
+(the per-example errors: the figures, the paired comparisons); a statistic that differs
+from the JSON, or an entry missing from it, stops the site: it never shows numbers the
+board does not hold.
 """
 
 from __future__ import annotations
@@ -16,14 +18,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from odmd_bench.errors import OdmdError, UsageError, ValidationError
+from odmd_bench.errors import ValidationError
 from odmd_bench.evaluation.compare import PairedDifference, compare_pairs
 from odmd_bench.evaluation.scoring import EvaluationResult
-from odmd_bench.leaderboard.board import load_board_data, score_entry
 from odmd_bench.leaderboard.entry import Entry
 from odmd_bench.leaderboard.files import ENTRIES, JSON_FILE, discover, read_entry
 from odmd_bench.leaderboard.ranking import RANK_CONFIDENCE, RANK_SEED, resamples
 from odmd_bench.leaderboard.render import JSON_DECIMALS
+from odmd_bench.leaderboard.rules import SELECTED_ON, TRAINING_KINDS
 from odmd_bench.leaderboard.specs import BoardSpec, board_spec
 
 #: The method every row is also compared with, where its board has it.
@@ -32,40 +34,34 @@ REFERENCE_METHOD = "box-ls"
 FACETS: dict[str, tuple[str, ...]] = {
     "calibrated": ("yes", "no"),
     "input": ("boxes", "masks"),
-    "training": ("none", "generator", "other"),
+    "training": TRAINING_KINDS,
+    "selected_on": tuple(v for v in SELECTED_ON if v != "test"),  # test is refused (rules)
     "selection": ("overall", "per-set"),
 }
 
 
 def facets(meta: Mapping[str, Any]) -> dict[str, str]:
-    """An entry's facet values, from its metadata.
+    """An entry's facet values, from what its metadata declares.
 
     - ``calibrated``: ``yes`` or ``no``;
     - ``input``: ``boxes`` (every board scores box tracks; ``masks`` is kept for boards to come);
-    - ``training``: ``none`` when ``training_data`` is "none" (or starts with "none "), else
-      ``generator`` when it names the generator, else ``other``;
-    - ``selection``: ``per-set`` when the command or description says per-set selection
-      (``--selection per-set``), else ``overall``.
+    - ``training``: the declared ``training_kind`` (none, generator, real, other);
+    - ``selected_on``: the declared ``selected_on`` (val or nothing);
+    - ``selection``: ``per-set`` when the entry's ``options`` select a checkpoint per set
+      (``selection: per-set``), else ``overall``.
 
     Examples:
-        >>> facets({"calibrated": True, "training_data": "none (tuned on val)", "command": "x",
-        ...         "description": "y"})
-        {'calibrated': 'yes', 'input': 'boxes', 'training': 'none', 'selection': 'overall'}
+        >>> facets({"calibrated": True, "training_kind": "none", "selected_on": "val",
+        ...         "options": {"selection": "per-set"}})
+        {'calibrated': 'yes', 'input': 'boxes', 'training': 'none', 'selected_on': 'val', 'selection': 'per-set'}
     """
-    training = str(meta.get("training_data", "")).strip().lower()
-    if training == "none" or training.startswith(("none ", "none(")):
-        kind = "none"
-    elif "generator" in training:
-        kind = "generator"
-    else:
-        kind = "other"
-    said = f"{meta.get('command', '')} {meta.get('description', '')}".lower()
-    per_set = "--selection per-set" in said or "per-set selection" in said
+    options = meta.get("options") or {}
     return {
         "calibrated": "yes" if meta.get("calibrated") is True else "no",
         "input": "boxes",
-        "training": kind,
-        "selection": "per-set" if per_set else "overall",
+        "training": str(meta.get("training_kind", "")),
+        "selected_on": str(meta.get("selected_on", "")),
+        "selection": "per-set" if options.get("selection") == "per-set" else "overall",
     }
 
 
@@ -235,23 +231,27 @@ def load_site_data(
     *,
     n_resamples: int | None = None,
 ) -> SiteData:
-    """Read ``ROOT/leaderboard.json`` and re-score every entry it lists.
+    """Build the board from the entries under ``root`` and re-score every entry it lists.
 
     Raises:
-        UsageError: When there is no ``leaderboard.json``.
-        ValidationError: Naming every entry that cannot be read or scored, is missing
-            from the JSON or differs from it.
+        ValidationError: Naming every entry that cannot be read or scored, whose recorded
+            SHA-256 or scores differ from its re-scoring (``leaderboard check``'s
+            differences), or that is missing from the built JSON or differs from it.
     """
+    from odmd_bench.leaderboard.diff import entry_differences
+    from odmd_bench.leaderboard.render import build
+
     root = Path(root)
-    path = root / JSON_FILE
-    if not path.is_file():
-        raise UsageError(f"{path} is missing; run `odmd-bench leaderboard build` first")
-    json_text = path.read_text(encoding="utf-8")
-    try:
-        data = json.loads(json_text)
-        listed = [(b, r) for b in data["boards"] for r in b["rows"]]
-    except (ValueError, KeyError, TypeError) as e:
-        raise ValidationError(f"{path} cannot be used", [f"not a leaderboard.json ({e})"]) from None
+    built = build(root, data_dir, original, n_resamples=n_resamples)
+    differ = entry_differences(list(built.boards))
+    if differ:
+        raise ValidationError(
+            "the site cannot be built: entries differ from their re-scoring (leaderboard check fails)", differ
+        )
+    json_text = built.json_text
+    data = json.loads(json_text)
+    listed = [(b, r) for b in data["boards"] for r in b["rows"]]
+    scored = {f"{ENTRIES}/{row.entry.key}": row.result for bd in built.boards for row in bd.rows}
     entries, problems = _entries(root)
     named = {r.get("entry") for _, r in listed}
     problems += [
@@ -264,24 +264,12 @@ def load_site_data(
         spec = board_spec(jb["benchmark"], jb["split"])
         board = SiteBoard(spec, jb, [])
         boards.append(board)
-        if not jb["rows"]:
-            continue
-        try:
-            examples = load_board_data(spec.benchmark, spec.split, data_dir, original)
-        except OdmdError as err:
-            problems.append(f"{spec.key}: data cannot be loaded: {err.render()}")
-            continue
         for jr in jb["rows"]:
-            entry = entries.get(jr.get("entry"))
-            if entry is None:
+            entry, result = entries.get(jr.get("entry")), scored.get(jr.get("entry"))
+            if entry is None or result is None:
                 problems.append(
                     f"{JSON_FILE}: {spec.key} row {jr.get('method')!r}: its entry {jr.get('entry')} is missing"
                 )
-                continue
-            try:
-                result = score_entry(entry, examples)
-            except ValidationError as err:
-                problems += [f"{err.message}: {p}" for p in err.problems] or [err.message]
                 continue
             wrong = _mismatches(jr, result)
             if wrong:

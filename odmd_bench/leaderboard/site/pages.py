@@ -14,7 +14,7 @@ import hashlib
 import importlib.resources
 import io
 import json
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from html import escape
 from string import Template
@@ -276,7 +276,7 @@ def _controls(site: SiteData) -> dict[str, str]:
         for c in _columns(b):
             keys.setdefault(c.key, c.title)
     facet = "".join(
-        f'<label>{name.capitalize()} <select name="{name}"><option value="">any</option>'
+        f'<label>{name.replace("_", " ").capitalize()} <select name="{name}"><option value="">any</option>'
         + "".join(f'<option value="{v}">{v}</option>' for v in values)
         + "</select></label>\n"
         for name, values in FACETS.items()
@@ -347,7 +347,9 @@ def _facts(r: SiteRow, name: str) -> str:
     items = [("Name here", _e(meta["name"]))] if meta["name"] != name else []
     calibrated = r.facets["calibrated"]
     items += [
-        ("Training data", _e(meta["training_data"])),
+        ("Training data", f"{_e(meta['training_data'])} (kind: {_e(r.facets['training'])})"),
+        ("Selected on", _e(r.facets["selected_on"])),
+        ("Test labels used", "yes" if meta.get("uses_test_labels") else "no"),
         ("Selection", r.facets["selection"]),
         ("Calibrated", calibrated + (" (uses the camera intrinsics)" if calibrated == "yes" else "")),
         ("Input", r.facets["input"]),
@@ -379,6 +381,19 @@ def _facts(r: SiteRow, name: str) -> str:
     if r.data["warnings"]:
         items.append(("Warnings", "<br>".join(_e(w) for w in r.data["warnings"])))
     return '<dl class="facts">' + "".join(f"<dt>{k}</dt><dd>{v}</dd>" for k, v in items) + "</dl>"
+
+
+def reproduce(meta: dict[str, Any], entry: str) -> str:
+    """The Reproduce commands of an entry: how to get its plug-in (where it records one), then its command."""
+    plugin = meta.get("plugin") or {}
+    lines = []
+    if "requirement" in plugin:
+        lines.append(f"pip install {plugin['requirement']}")
+    elif "source" in plugin:
+        lines.append(
+            f"# the plug-in's source: leaderboard/{entry}/{plugin['source']}/ (module {plugin['module']})"
+        )
+    return "\n".join([*lines, str(meta["command"])])
 
 
 def predictions_path(r: SiteRow) -> str:
@@ -425,7 +440,7 @@ SHA-256 of the file <code class="hash">{hashlib.sha256(files[pred]).hexdigest()}
 leaderboard.json records it, <code class="hash">{_e(r.data["predictions_csv_sha256"])}</code>).
 In the repository: <code>leaderboard/{_e(r.data["entry"])}/</code>.</p>
 <h3>Reproduce</h3>
-<pre><code id="{cmd}">{_e(meta["command"])}</code></pre>
+<pre><code id="{cmd}">{_e(reproduce(meta, r.data["entry"]))}</code></pre>
 <button type="button" class="copy" data-for="{cmd}" hidden>Copy the command</button>
 <h3>Paired comparisons</h3>
 {_versus_table(r, n)}
@@ -545,11 +560,11 @@ def _speed_section(site: SiteData, figures: bool, files: dict[str, bytes]) -> st
     )
     if not figures:
         return said + NO_PLOT
-    from odmd_bench.leaderboard.site.figures import speed_png
+    from odmd_bench.leaderboard.site.figures import speed_svg
 
-    files["figures/speed.png"] = speed_png(points, [b.id for b in site.boards])
+    files["figures/speed.svg"] = speed_svg(points, [b.id for b in site.boards])
     return said + (
-        '<p><img class="figure" src="figures/speed.png" alt="All against examples per second per board, the '
+        '<p><img class="figure" src="figures/speed.svg" alt="All against examples per second per board, the '
         'Pareto front marked"></p>\n<p class="meta">The Pareto front (red) joins the entries that no other entry '
         "beats on both speed and All. Each speed was measured where its entry says (the device shows when you "
         "hover over a speed; the method page names the command).</p>"
@@ -559,22 +574,43 @@ def _speed_section(site: SiteData, figures: bool, files: dict[str, bytes]) -> st
 # ----------------------------------------------------------------------------- the whole site
 
 
+def _cite() -> dict[str, str]:
+    """The footer's citation and addresses (odmd_bench.project: configured in pyproject.toml)."""
+    from odmd_bench.project import card_url, citation_text, repository_url
+
+    repo = repository_url()
+    return {
+        "citation": _e(citation_text()),
+        "repository": _e(repo),
+        "card": _e(card_url()),
+        "maintenance": _e(f"{repo}/blob/main/docs/maintenance.md"),
+    }
+
+
 def _page(title: str, body: str, base: str, digest: str) -> bytes:
     return (
         template("page.html")
-        .substitute(title=_e(title), body=body, base=base, version=_e(__version__), digest=digest)
+        .substitute(title=_e(title), body=body, base=base, version=_e(__version__), digest=digest, **_cite())
         .encode("utf-8")
     )
 
 
-def render_site(site: SiteData, *, figures: bool, source_url: str | None = None) -> dict[str, bytes]:
+def render_site(
+    site: SiteData,
+    *,
+    figures: bool,
+    source_url: str | None = None,
+    extra_downloads: Mapping[str, tuple[bytes, str]] | None = None,
+) -> dict[str, bytes]:
     """Every file of the site, ``{relative path: bytes}``, sorted by path.
 
     Args:
         site: the board and its re-scored entries (:func:`~odmd_bench.leaderboard.site.data.load_site_data`).
         figures: draw the figures (needs matplotlib).
         source_url: where repository paths (an entry's ``code``) link to, e.g.
-            ``https://github.com/OWNER/odmd-bench/blob/COMMIT``; without it they are shown as text.
+            ``https://github.com/odmd-bench/odmd-bench/blob/COMMIT``; without it they are shown as text.
+        extra_downloads: further files for ``downloads/``, ``{file name: (bytes, what it is)}``
+            (the Croissant descriptions of ``leaderboard site``), each listed with the others.
     """
     digest = board_digest(site.json_text)
     files: dict[str, bytes] = {
@@ -591,6 +627,9 @@ def render_site(site: SiteData, *, figures: bool, source_url: str | None = None)
             downloads.append(
                 f'<li><a href="downloads/{b.id}.csv">{b.id}.csv</a>: the {_e(b.spec.key)} table</li>'
             )
+    for name, (data, what) in (extra_downloads or {}).items():
+        files[f"downloads/{name}"] = data
+        downloads.append(f'<li><a href="downloads/{_e(name)}">{_e(name)}</a>: {_e(what)}</li>')
     downloads.append('<li><a href="reported.html">Results reported in papers</a> (not re-scored)</li>')
     methods: dict[str, list[tuple[SiteRow, SiteBoard]]] = {}
     for b in site.boards:

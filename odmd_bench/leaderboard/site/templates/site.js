@@ -3,7 +3,7 @@
 (function () {
   "use strict";
   document.documentElement.classList.add("js");
-  var FACETS = ["calibrated", "input", "training", "selection"];
+  var FACETS = ["calibrated", "input", "training", "selected_on", "selection"];
   var form = document.getElementById("controls");
   var tables = Array.prototype.slice.call(document.querySelectorAll("table[data-board]"));
   document.querySelectorAll("button.copy").forEach(function (b) {
@@ -27,17 +27,58 @@
     return sel ? Array.prototype.map.call(sel.options, function (o) { return o.value; }) : [];
   }
 
-  function read() {
+  // The view the address asks for; with report, what of it cannot be shown is said on the page
+  // (a mistyped board or column would otherwise silently show another view).
+  function read(report) {
     var q = new URLSearchParams(window.location.search);
     var state = { board: q.get("board") || "", sort: q.get("sort") || "", order: q.get("order") || "asc", facets: {} };
-    if (boards.indexOf(state.board) < 0) { state.board = ""; }
-    if (!keys[state.sort]) { state.sort = ""; }
+    var problems = [];
+    if (boards.indexOf(state.board) < 0) {
+      if (state.board) {
+        problems.push("board=" + state.board + " is not a board of this site (" + boards.join(", ") +
+                      "); every board is shown");
+      }
+      state.board = "";
+    }
+    if (!keys[state.sort]) {
+      if (state.sort) {
+        problems.push("sort=" + state.sort + " is not a column (" + Object.keys(keys).join(", ") +
+                      "); the board order is shown");
+      }
+      state.sort = "";
+    }
+    if (state.order !== "desc" && state.order !== "asc") {
+      problems.push("order=" + state.order + " is neither asc nor desc; ascending is shown");
+    }
     if (state.order !== "desc") { state.order = "asc"; }
     FACETS.forEach(function (f) {
       var v = q.get(f) || "";
+      if (v && choices(f).indexOf(v) < 0) {
+        problems.push(f + "=" + v + " is not one of " + choices(f).filter(Boolean).join(", ") +
+                      "; rows are not filtered on " + f);
+      }
       state.facets[f] = choices(f).indexOf(v) >= 0 ? v : "";
     });
+    q.forEach(function (v, k) {
+      if (k !== "board" && k !== "sort" && k !== "order" && FACETS.indexOf(k) < 0) {
+        problems.push(k + " is not a setting of the view (board, sort, order, " + FACETS.join(", ") + "); ignored");
+      }
+    });
+    if (report) { say(problems); }
     return state;
+  }
+
+  function say(problems) {
+    var box = document.getElementById("view-problems");
+    if (!box) { return; }
+    box.textContent = "";
+    if (problems.length) {
+      var head = document.createElement("strong");
+      head.textContent = "The address asks for a view this page cannot show: ";
+      box.appendChild(head);
+      box.appendChild(document.createTextNode(problems.join("; ") + "."));
+    }
+    box.hidden = !problems.length;
   }
 
   function write(state) {
@@ -106,7 +147,7 @@
     return state;
   }
 
-  form.addEventListener("change", function () { var s = fromForm(); write(s); apply(s); });
+  form.addEventListener("change", function () { var s = fromForm(); write(s); say([]); apply(s); });
   form.addEventListener("submit", function (e) { e.preventDefault(); });
   tables.forEach(function (table) {
     table.querySelectorAll("th[data-key] button").forEach(function (button) {
@@ -116,9 +157,10 @@
         state.order = state.sort === key && state.order === "asc" ? "desc" : "asc";
         state.sort = key;
         write(state);
+        say([]);
         apply(state);
       });
     });
   });
-  apply(read());
+  apply(read(true));
 }());
