@@ -43,6 +43,11 @@ published 21.23):
 ``non_finite``
     The solution is not finite (non-finite numbers in the inputs).
 
+Error bars: ``predict_spread`` is the box-size posterior's spread of
+:mod:`odmd_bench_baselines.robust.spread` (the information Box_LS uses: box sizes and
+camera ``z``), which ``odmd-bench baseline box-ls --interval 0.9`` turns into intervals
+calibrated on val (:mod:`odmd_bench.predict.intervals`).
+
 The output never holds NaN or infinity. Negative depths are legal least-squares answers
 on noisy data and are returned as they are (the paper's numbers include them).
 """
@@ -50,8 +55,12 @@ on noisy data and are returned as they are (the paper's numbers include them).
 from __future__ import annotations
 
 import numpy as np
+from odmd_bench_baselines.robust.spread import box_ls_spread
 
 import odmd_bench
+
+#: The optional third function of a method (:mod:`odmd_bench.methods`): each estimate's spread.
+predict_spread = box_ls_spread
 
 #: Depth (metres) given to examples whose system cannot be solved, as the paper scores them.
 DEFAULT_FALLBACK_DEPTH = 0.0

@@ -7,6 +7,14 @@ a module (or any object) with two functions::
     predict(examples, **options) -> depths (N,)
     predict_report(examples, **options) -> (depths (N,), {fallback: count, ...})
 
+and, optionally, a third::
+
+    predict_spread(examples, **options) -> spreads (N,)
+
+its own relative uncertainty per example (positive, unitless), which
+:mod:`odmd_bench.predict.intervals` turns into val-calibrated error bars; a method without it
+gets intervals of one relative width per set.
+
 A third-party package adds its method to the command line without touching this one,
 by declaring in its own ``pyproject.toml``::
 
@@ -38,13 +46,15 @@ and :func:`format_command` / :func:`parse_command` write and read the
 
 from __future__ import annotations
 
+import contextlib
 import inspect
 import keyword
 import math
 import os
 import shlex
+import sys
 import traceback
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from importlib import metadata
 from pathlib import Path
@@ -173,6 +183,7 @@ class Method:
         predict: ``predict(examples, **options) -> depths``.
         predict_report: ``predict_report(examples, **options) -> (depths, counts)``.
         options: the options its module declares (``OPTIONS``), in their order.
+        spread: ``predict_spread(examples, **options) -> (N,)``, or None.
     """
 
     name: str
@@ -181,6 +192,7 @@ class Method:
     predict: Callable[..., Any]
     predict_report: Callable[..., Any]
     options: tuple[MethodOption, ...] = ()
+    spread: Callable[..., Any] | None = None
 
     def option(self, name: str) -> MethodOption | None:
         """The declared option ``name`` (a keyword, ``weights_sha256``), or ``None``."""
@@ -308,6 +320,59 @@ class Method:
         return self.source.split(" ", 1)[0] == "odmd-bench"
 
 
+@contextlib.contextmanager
+def output_to_stderr() -> Iterator[None]:
+    """Standard output goes to standard error while the block runs, Python's and the process's (fd 1).
+
+    A method's prints, and a C library's, cannot corrupt what a command writes to
+    standard output (``leaderboard audit --format json``). Where fd 1 or 2 is not open,
+    only Python's ``sys.stdout`` is redirected.
+    """
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(Exception):
+            stream.flush()
+    saved = None
+    with contextlib.suppress(OSError):
+        saved = os.dup(1)
+        os.dup2(2, 1)
+    try:
+        with contextlib.redirect_stdout(sys.stderr):
+            yield
+    finally:
+        with contextlib.suppress(Exception):
+            sys.stderr.flush()
+        if saved is not None:
+            os.dup2(saved, 1)
+            os.close(saved)
+
+
+def run_contained(
+    method: Method, examples: Examples, **options: Any
+) -> tuple[np.ndarray, dict[str, int | str]]:
+    """:meth:`Method.run` with a plug-in contained, for commands that run many methods in one process.
+
+    The method's standard output goes to standard error (:func:`output_to_stderr`), and a
+    plug-in (a method of another distribution) that exits (``sys.exit``), runs out of
+    memory or raises anything else becomes a :class:`MethodError` naming it, so that the
+    caller can report that one method and go on with the others. ``KeyboardInterrupt``
+    is the user's and passes; so does anything odmd-bench's own methods raise (their bugs
+    are ours).
+    """
+    with output_to_stderr():
+        try:
+            return method.run(examples, **options)
+        except (OdmdError, KeyboardInterrupt):
+            raise
+        except BaseException as e:
+            if method.is_own:
+                raise
+            what = f"exited (SystemExit {e.code!r})" if isinstance(e, SystemExit) else f"failed: {_raised(e)}"
+            raise MethodError(
+                f"method {method.name!r} ({method.target}, from {method.source}) {what}; a bug of that "
+                "method, not of odmd-bench"
+            ) from None
+
+
 def _raised(e: BaseException) -> str:
     """``Type: message (raised at file:line, in function)``, the last frame of the trace."""
     frames = traceback.extract_tb(e.__traceback__)
@@ -363,14 +428,26 @@ def load(name: str) -> Method:
             f"method {name!r} ({ep.value}, from {_source(ep)}) is not usable: it has no "
             + " and no ".join(f"{f}()" for f in missing)
         )
+    return _method(name, ep.value, _source(ep), obj)
+
+
+def _method(name: str, target: str, source: str, obj: Any) -> Method:
+    """The :class:`Method` of a loaded module (or object) with both functions, its ``OPTIONS`` checked."""
     declared = getattr(obj, "OPTIONS", ())
     functions = (obj.predict, obj.predict_report)
     problems = declaration_problems(declared, functions)
     if problems:
-        raise UsageError(
-            f"method {name!r} ({ep.value}, from {_source(ep)}) is not usable: its OPTIONS", problems
-        )
-    return Method(name, ep.value, _source(ep), obj.predict, obj.predict_report, tuple(declared))
+        raise UsageError(f"method {name!r} ({target}, from {source}) is not usable: its OPTIONS", problems)
+    spread = getattr(obj, "predict_spread", None)
+    return Method(
+        name,
+        target,
+        source,
+        obj.predict,
+        obj.predict_report,
+        tuple(declared),
+        spread if callable(spread) else None,
+    )
 
 
 def declaration_problems(declared: object, functions: Sequence[Callable[..., Any]]) -> list[str]:
@@ -446,7 +523,7 @@ def format_command(
 
 
 #: ``odmd-bench baseline``'s own options that take a value (not the method's).
-BASELINE_OPTIONS: tuple[str, ...] = ("--benchmark", "--split", "-o", "--output", "--data-dir")
+BASELINE_OPTIONS: tuple[str, ...] = ("--benchmark", "--split", "-o", "--output", "--data-dir", "--interval")
 
 
 def parse_command(command: str) -> tuple[str, dict[str, str], dict[str, str]]:
@@ -507,6 +584,60 @@ def parse_command(command: str) -> tuple[str, dict[str, str], dict[str, str]]:
     if len(names) != 1:
         raise ValueError(f"the command names {len(names)} methods; `odmd-bench baseline` takes one")
     return names[0], options, own
+
+
+def own_names() -> list[str]:
+    """The names of the methods odmd-bench itself registers (shipped in this repository), from metadata only."""
+    return sorted({ep.name for ep in _entry_points() if _source(ep).split(" ", 1)[0] == "odmd-bench"})
+
+
+def load_module(name: str, module: str, source: str, folder: Path | None = None) -> Method:
+    """Method ``name`` from the module ``module`` (not an entry point): a pinned plug-in's, or one kept as source.
+
+    Args:
+        name: what messages call it.
+        module: the dotted module that has ``predict`` and ``predict_report``.
+        source: where it comes from, in words (shown in its errors).
+        folder: a folder of plain ``.py`` files to import ``module`` from (an entry's
+            plug-in source); it is put first on ``sys.path`` and stays there, so that the
+            module's own later imports work. Its top package must not be one already
+            imported or installed elsewhere.
+
+    Raises:
+        UsageError: the module cannot be imported or lacks the two functions.
+    """
+    import importlib
+    import importlib.util
+
+    top = module.split(".", 1)[0]
+    if folder is not None:
+        loaded = sys.modules.get(top)
+        where = Path(getattr(loaded, "__file__", None) or "") if loaded is not None else None
+        found = importlib.util.find_spec(top) if loaded is None else None
+        other = where if where is not None else (Path(found.origin) if found and found.origin else None)
+        if (loaded is not None or found is not None) and (
+            other is None or folder.resolve() not in other.resolve().parents
+        ):
+            raise UsageError(
+                f"method {name!r}: its module {top} is already {'imported' if loaded else 'installed'} from elsewhere ({other})"
+            )
+        if str(folder) not in sys.path:
+            sys.path.insert(0, str(folder))
+    try:
+        obj = importlib.import_module(module)
+    except ModuleNotFoundError as e:
+        raise _missing(e, name, module) from None
+    except Exception as e:
+        raise UsageError(
+            f"method {name!r} ({module}, from {source}) cannot be loaded: {type(e).__name__}: {e}"
+        ) from None
+    missing = [f for f in ("predict", "predict_report") if not callable(getattr(obj, f, None))]
+    if missing:
+        raise UsageError(
+            f"method {name!r} ({module}, from {source}) is not usable: it has no "
+            + " and no ".join(f"{f}()" for f in missing)
+        )
+    return _method(name, module, source, obj)
 
 
 def accepting(keyword: str) -> list[str]:
@@ -657,7 +788,11 @@ __all__ = [
     "format_command",
     "format_value",
     "load",
+    "load_module",
     "names",
+    "output_to_stderr",
+    "own_names",
     "parse_command",
     "recorded_options",
+    "run_contained",
 ]

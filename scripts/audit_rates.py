@@ -68,18 +68,22 @@ def fresh_vs_fresh(found: Collected, repeats: int) -> Collected:
 
 
 def _summary(result: dict[str, Any]) -> dict[str, Any]:
-    ps = [t["p"] for e in result["entries"] if e["runnable"] for t in [*e["sets"].values(), e["all"]]]
+    ps = [
+        t["p"] for e in result["entries"] if e["runnable"] for t in [*e["sets"].values(), e["generated_mean"]]
+    ]
     return {
         "flagged": flagged(result),
         "tests": len(ps),
         "raw_p_at_most_0.05": sum(p <= 0.05 for p in ps),
         "raw_p_at_most_0.01": sum(p <= 0.01 for p in ps),
         "p": {
-            e["method"]: {**{s: t["p"] for s, t in e["sets"].items()}, "all": e["all"]["p"]}
+            e["method"]: {**{s: t["p"] for s, t in e["sets"].items()}, "all": e["generated_mean"]["p"]}
             for e in result["entries"]
             if e["runnable"]
         },
-        "committed_all": {e["method"]: e["all"]["committed"] for e in result["entries"] if e["runnable"]},
+        "committed_all": {
+            e["method"]: e["generated_mean"]["committed"] for e in result["entries"] if e["runnable"]
+        },
     }
 
 

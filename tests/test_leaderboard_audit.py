@@ -9,6 +9,7 @@ false-alarm rate and the power over more seeds, docs in leaderboard/README.md).
 
 from __future__ import annotations
 
+import csv
 import dataclasses
 import json
 import shutil
@@ -27,6 +28,7 @@ from odmd_bench import methods
 from odmd_bench.cli.main import cli
 from odmd_bench.errors import UsageError
 from odmd_bench.leaderboard import audit as au
+from odmd_bench.leaderboard import audit_check as ac
 from odmd_bench.leaderboard.audit_files import audit_path, read_audits, shape_problems
 
 REPO = Path(__file__).resolve().parents[1]
@@ -300,8 +302,8 @@ def _memoriser_flagged_box_ls_not(result: dict[str, Any]) -> None:
     rows = {e["method"]: e for e in result["entries"]}
     cheat, honest = rows["memorise"], rows["box-ls"]
     assert cheat["runnable"] and cheat["flagged"] is True
-    assert cheat["all"]["committed"] == 0.0 and cheat["all"]["fresh"] > 5
-    assert cheat["all"]["p_adjusted"] <= au.LEVEL
+    assert cheat["generated_mean"]["committed"] == 0.0 and cheat["generated_mean"]["fresh"] > 5
+    assert cheat["generated_mean"]["p_adjusted"] <= au.LEVEL
     assert honest["runnable"] and honest["flagged"] is False
     assert result["sets"] == {"normal": SMALL, "camera": SMALL, "object": SMALL}
     assert au.flagged(result) == ["memorise"]
@@ -323,7 +325,8 @@ def test_the_command_exits_1_on_a_flag_and_records_what_it_prints(recorded: tupl
     assert result["seed"] == 3 and result["repeats"] == au.REPEATS
     assert result["fresh_seeds"]["normal"] == [au.fresh_seed(3, r, 0) for r in range(au.REPEATS)]
     table = au.audit_table(result)
-    assert "flagged: memorise" in table and "memorise               all          0.00" in table
+    assert "flagged: memorise" in table and "memorise               N+C+O        0.00" in table
+    assert "N+C+O = the mean over the generated sets Normal, Camera, Object (not the board's All" in table
     assert "re-running memorise (memorise) on the fresh sets" in run.stderr
 
 
@@ -355,12 +358,155 @@ def test_check_audits_re_runs_the_record_and_names_a_difference(
     assert "every recorded audit re-run" in checked.stdout
     path = audit_path(audited_board, 3)
     doc = json.loads(path.read_text())
-    doc["entries"][1]["all"]["fresh"] += 1.0
+    doc["entries"][1]["generated_mean"]["fresh"] += 1.0
     path.write_text(au.audit_json(doc))
-    problems = au.rerun_audits(audited_board, v1_data_dir)
+    problems = ac.rerun_audits(audited_board, v1_data_dir)
     assert len(problems) == 1 and problems[0].startswith(
-        "audits/3.json: entries[memorise].all.fresh: committed"
+        "audits/3.json: entries[memorise].generated_mean.fresh: committed"
     )
+
+
+@pytest.fixture
+def another_processor(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Every method's depths moved by a relative 1e-6, as another processor's float32 kernels move them."""
+    run = methods.Method.run
+
+    def moved(self: methods.Method, examples: Any, **options: Any) -> Any:
+        depths, report = run(self, examples, **options)
+        signs = np.random.default_rng(len(examples)).choice([-1.0, 1.0], len(depths))
+        return depths * (1 + 1e-6 * signs), report
+
+    monkeypatch.setattr(methods.Method, "run", moved)
+
+
+def _check_audits(root: Path, data_dir: Path) -> Any:
+    return CliRunner().invoke(
+        cli, ["leaderboard", "check", "--audits", "--root", str(root), "--data-dir", str(data_dir)]
+    )
+
+
+def test_check_audits_passes_where_another_processor_moves_the_depths_in_the_last_bits(
+    audited_board: Path, v1_data_dir: Path, monkeypatch: pytest.MonkeyPatch, another_processor: None
+) -> None:
+    monkeypatch.setattr("odmd_bench.leaderboard.ranking.RANK_RESAMPLES", FAST)
+    again = au.audit(
+        audited_board,
+        3,
+        size=SMALL,
+        data_dir=v1_data_dir,
+        date=json.loads(audit_path(audited_board, 3).read_text())["date"],
+    )
+    committed = audit_path(audited_board, 3).read_text()
+    assert au.audit_json(again) != committed  # the moved depths change recorded digits
+    checked = _check_audits(audited_board, v1_data_dir)
+    assert checked.exit_code == 0, checked.output
+    assert "every recorded audit re-run" in checked.stdout
+
+
+@pytest.mark.parametrize(
+    ("change", "expected"),
+    [
+        (
+            lambda d: d["entries"][0]["sets"]["camera"].__setitem__(
+                "fresh", d["entries"][0]["sets"]["camera"]["fresh"] + 0.01
+            ),
+            "entries[box-ls].sets.camera.fresh: committed",
+        ),
+        (
+            lambda d: d["entries"][0]["sets"]["object"]["fresh_interval"].__setitem__(
+                1, d["entries"][0]["sets"]["object"]["fresh_interval"][1] - 0.01
+            ),
+            "entries[box-ls].sets.object.fresh_interval[1]: committed",
+        ),
+        (
+            lambda d: d["entries"][0]["sets"]["object"].__setitem__(
+                "difference", d["entries"][0]["sets"]["object"]["difference"] + 0.01
+            ),
+            "entries[box-ls].sets.object.difference: committed",
+        ),
+        (
+            lambda d: d["entries"][0]["sets"]["camera"].__setitem__(
+                "p", 0.5 if d["entries"][0]["sets"]["camera"]["p"] < 0.4 else 0.2
+            ),
+            "entries[box-ls].sets.camera.p: committed",
+        ),
+        (
+            lambda d: d["entries"][0].__setitem__("flagged", True),
+            "entries[box-ls].flagged: True is not what its adjusted p-values give",
+        ),
+    ],
+    ids=["fresh-mean", "interval", "difference", "p", "flag"],
+)
+def test_check_audits_fails_on_a_changed_figure_even_with_the_tolerance(
+    audited_board: Path,
+    v1_data_dir: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    another_processor: None,
+    change: Any,
+    expected: str,
+) -> None:
+    monkeypatch.setattr("odmd_bench.leaderboard.ranking.RANK_RESAMPLES", FAST)
+    path = audit_path(audited_board, 3)
+    doc = json.loads(path.read_text())
+    change(doc)
+    path.write_text(au.audit_json(doc))
+    problems = ac.rerun_audits(audited_board, v1_data_dir)
+    assert len(problems) == 1 and problems[0].startswith(f"audits/3.json: {expected}"), problems
+    checked = _check_audits(audited_board, v1_data_dir)
+    assert checked.exit_code == 1, checked.output
+
+
+def test_check_audits_fails_where_the_flag_is_flipped_with_its_p_values(
+    audited_board: Path, v1_data_dir: Path, another_processor: None
+) -> None:
+    """A consistent forgery: the memoriser's p-values raised to clear it, its flag cleared to match."""
+    path = audit_path(audited_board, 3)
+    doc = json.loads(path.read_text())
+    cheat = doc["entries"][1]
+    assert cheat["method"] == "memorise" and cheat["flagged"] is True
+    for t in [*cheat["sets"].values(), cheat["generated_mean"]]:
+        t["p"] = t["p_adjusted"] = 1.0
+    cheat["flagged"] = False
+    path.write_text(au.audit_json(doc))
+    problems = ac.rerun_audits(audited_board, v1_data_dir)
+    assert "audits/3.json: entries[memorise].flagged: committed False, the re-run gives True" in problems
+    assert any(
+        p.startswith("audits/3.json: entries[memorise].generated_mean.p: committed 1.0, the re-run gives")
+        for p in problems
+    )
+
+
+def test_the_p_value_range_holds_every_p_a_perturbation_within_the_bounds_gives() -> None:
+    """Fresh errors moved by up to their bound, adversarially and at random: p stays in the range."""
+    rng = np.random.default_rng(8)
+    committed = {s: rng.exponential(5.0, (40, 3)) for s in "ab"}
+    fresh = {s: rng.exponential(5.0, (120, 3)) for s in "ab"}
+    rtol = 1e-3  # large, so that the range is not a point
+    margins = ac.statistic_margins(committed, fresh, rtol)
+    up, down = margins, ({s: -v for s, v in margins[0].items()}, -margins[1])
+    counts, counts_all = au._exceedances(committed, fresh, np.random.default_rng(0), 499, (up, down))
+    low = np.array([*(counts[s][0] for s in "ab"), counts_all[0]])
+    high = np.array([*(counts[s][1] for s in "ab"), counts_all[1]])
+    assert (high > low).any()
+    for trial in range(20):
+        if trial < 2:  # the worst cases: every fresh error moved down, or up, by its bound
+            sign = -1.0 if trial == 0 else 1.0
+            moved = {s: f + sign * ac.error_bounds(f, rtol) for s, f in fresh.items()}
+        else:
+            moved = {s: f + rng.uniform(-1, 1, f.shape) * ac.error_bounds(f, rtol) for s, f in fresh.items()}
+        p, p_all = au.permutation_pvalues(committed, moved, np.random.default_rng(0), 499)
+        got = np.array([*(p[s] for s in "ab"), p_all]) * 500 - 1
+        assert ((low <= got + 1e-9) & (got <= high + 1e-9)).all()
+
+
+def test_holm_is_increasing_in_each_p_value() -> None:
+    """What the check's range of adjusted p-values rests on."""
+    rng = np.random.default_rng(9)
+    for _ in range(500):
+        p = rng.choice([0.001, 0.01, 0.02, 0.05, 0.2, 1.0], 6) * rng.uniform(0.5, 1, 6)
+        q = p.copy()
+        q[rng.integers(6)] *= rng.uniform(1, 3)
+        assert (au.holm(np.minimum(q, 1)) >= au.holm(p) - 1e-15).all()
 
 
 def test_plain_check_refuses_a_malformed_or_stale_audit(audited_board: Path, v1_data_dir: Path) -> None:
@@ -385,6 +531,294 @@ def test_plain_check_refuses_a_malformed_or_stale_audit(audited_board: Path, v1_
     assert shape_problems(doc, 3) == [
         "entry memorise: runnable must be true or false; a re-run entry has no reason and a flag"
     ]
+    doc["entries"][1] = {("all" if k == "generated_mean" else k): v for k, v in doc["entries"][1].items()}
+    assert shape_problems(doc, 3) == [
+        "entry memorise: field `all` is that of an older odmd-bench (now `generated_mean`, the mean over the "
+        "generated sets, not the board's All): record the audit again (odmd-bench leaderboard audit --seed N --record)"
+    ]
+
+
+# ------------------------------------------------------------------- one entry, partial environments
+
+
+def test_only_audits_the_entries_named(cheat_board_built: Path, v1_data_dir: Path) -> None:
+    run = CliRunner().invoke(
+        cli,
+        ["leaderboard", "audit", "--seed", "1", "--only", "box-ls", "--format", "json", "--size", "60"]
+        + ["--root", str(cheat_board_built), "--data-dir", str(v1_data_dir)],
+    )
+    assert run.exit_code == 0, run.output
+    result = json.loads(run.stdout)
+    assert [e["method"] for e in result["entries"]] == ["box-ls"] and result["entries"][0]["runnable"]
+    assert result["test"]["tests"] == 4
+    run = CliRunner().invoke(
+        cli, ["leaderboard", "audit", "--seed", "1", "--only", "nobody", "--root", str(cheat_board_built)]
+    )
+    assert run.exit_code == 2 and "no entry nobody on the odmd-v1 test board" in run.output
+
+
+@pytest.fixture
+def memoriser_gone(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The memorising plug-in not installed (as in CI, where nobody installs a contributor's plug-in)."""
+    found = methods._entry_points
+    monkeypatch.setattr(methods, "_entry_points", lambda: [ep for ep in found() if ep.name != "memorise"])
+
+
+def test_check_audits_passes_where_a_recorded_plug_in_is_not_installed(
+    audited_board: Path, v1_data_dir: Path, monkeypatch: pytest.MonkeyPatch, memoriser_gone: None
+) -> None:
+    monkeypatch.setattr("odmd_bench.leaderboard.ranking.RANK_RESAMPLES", FAST)
+    checked = _check_audits(audited_board, v1_data_dir)
+    assert checked.exit_code == 0, checked.output
+    assert "entry memorise not audited here: method 'memorise' cannot be loaded" in checked.stderr
+    # box-ls is still checked, Holm's family holding the memoriser's recorded p-values
+    path = audit_path(audited_board, 3)
+    doc = json.loads(path.read_text())
+    doc["entries"][0]["sets"]["camera"]["fresh"] += 0.01
+    path.write_text(au.audit_json(doc))
+    assert [p.split(": committed")[0] for p in ac.rerun_audits(audited_board, v1_data_dir)] == [
+        "audits/3.json: entries[box-ls].sets.camera.fresh"
+    ]
+
+
+def test_record_refuses_to_replace_a_re_run_with_not_re_run(
+    audited_board: Path, v1_data_dir: Path, memoriser_gone: None
+) -> None:
+    before = audit_path(audited_board, 3).read_text()
+    run = CliRunner().invoke(
+        cli,
+        ["leaderboard", "audit", "--seed", "3", "--record", "--size", str(SMALL)]
+        + ["--root", str(audited_board), "--data-dir", str(v1_data_dir)],
+    )
+    assert run.exit_code == 2, run.output
+    assert "not recorded" in run.stderr
+    assert "entry memorise was re-run by audits/3.json and not here" in run.stderr
+    assert audit_path(audited_board, 3).read_text() == before
+    assert "memorise               not audited: method 'memorise' cannot be loaded" in run.stdout
+
+
+def test_record_refuses_an_audit_of_some_entries_over_a_record_of_more(
+    audited_board: Path, v1_data_dir: Path
+) -> None:
+    run = CliRunner().invoke(
+        cli,
+        ["leaderboard", "audit", "--seed", "3", "--record", "--only", "box-ls", "--size", str(SMALL)]
+        + ["--root", str(audited_board), "--data-dir", str(v1_data_dir)],
+    )
+    assert run.exit_code == 2 and "3.json holds entries this audit leaves out (memorise)" in run.stderr
+
+
+def test_plain_check_refuses_an_audit_that_did_not_re_run_a_shipped_method(
+    audited_board: Path, v1_data_dir: Path
+) -> None:
+    path = audit_path(audited_board, 3)
+    doc = json.loads(path.read_text())
+    box = doc["entries"][0]
+    box.update(runnable=False, reason="no module named torch", sets={}, generated_mean=None, flagged=None)
+    path.write_text(au.audit_json(doc))
+    problems = lb.check(audited_board, v1_data_dir, n_resamples=FAST)
+    assert any(
+        p.startswith(
+            "audits/3.json: entry box-ls runs box-ls, a method shipped in this repository, but the audit "
+            "says it was not re-run (no module named torch)"
+        )
+        for p in problems
+    ), problems
+
+
+# ------------------------------------------------------------------- plug-ins contained
+
+HOSTILE = {
+    "aa-writer": """
+def predict_report(examples):
+    examples.camera[..., 2] *= 1.05  # into its input: read-only, so this raises
+    return examples.camera[:, 0, 2] * 0 + 1.0, {}
+""",
+    "ab-unlocker": """
+from odmd_bench_baselines import box_ls
+
+def predict_report(examples):
+    depths = box_ls.predict(examples)
+    camera = examples.camera
+    camera.flags.writeable = True  # its own copy: allowed, and reaches nothing else
+    camera[..., 2] *= 1.05
+    return depths, {}
+""",
+    "ac-exit": """
+import sys
+
+def predict_report(examples):
+    sys.exit(0)
+""",
+    "ad-memory": """
+def predict_report(examples):
+    raise MemoryError("a plug-in out of memory")
+""",
+    "ae-printer": """
+import os
+from odmd_bench_baselines import box_ls
+
+def predict_report(examples):
+    print("hello from a plug-in")
+    os.write(1, b"and from its C library" + bytes([10]))
+    return box_ls.predict(examples), {}
+""",
+}
+
+
+@pytest.fixture(scope="module")
+def hostile_board(tmp_path_factory: pytest.TempPathFactory, v1_data_dir: Path) -> Iterator[Path]:
+    """Box_LS's entry and five hostile plug-ins' (registered, audited before Box_LS: their ids sort first)."""
+    site = tmp_path_factory.mktemp("hostile-site")
+    info = site / "odmd_hostile-1.0.dist-info"
+    info.mkdir()
+    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: odmd-hostile\nVersion: 1.0\n")
+    (info / "entry_points.txt").write_text(
+        f"[{methods.GROUP}]\n" + "".join(f"{n} = odmd_hostile_{n[:2]}\n" for n in HOSTILE)
+    )
+    for n, code in HOSTILE.items():
+        (site / f"odmd_hostile_{n[:2]}.py").write_text(
+            textwrap.dedent(code) + "\n\ndef predict(examples):\n    return predict_report(examples)[0]\n"
+        )
+    tmp = tmp_path_factory.mktemp("hostile")
+    root = tmp / "leaderboard"
+    (root / lb.ENTRIES).mkdir(parents=True)
+    _entry(root, v1_data_dir, "box-ls", "box-ls", tmp)
+    header, *rows = list(csv.reader((tmp / "box-ls.csv").read_text().splitlines()))
+    depth = header.index("depth")
+    for k, n in enumerate(
+        HOSTILE, 1
+    ):  # Box_LS's predictions, scaled: the committed side does not matter here
+        scaled = [[*r[:depth], repr(float(r[depth]) * (1 + k / 1000)), *r[depth + 1 :]] for r in rows]
+        (tmp / f"{n}.csv").write_text("\n".join(",".join(r) for r in [header, *scaled]) + "\n")
+        add_entry(
+            root,
+            v1_data_dir,
+            tmp / f"{n}.csv",
+            n,
+            command=f"odmd-bench baseline {n} --benchmark odmd-v1 --split test -o predictions.csv",
+        )
+    with pytest.MonkeyPatch.context() as patch:
+        patch.syspath_prepend(str(site))
+        yield root
+
+
+def test_hostile_plug_ins_are_contained_and_the_others_audited_as_if_they_were_not_there(
+    hostile_board: Path, v1_data_dir: Path, capfd: pytest.CaptureFixture[str]
+) -> None:
+    run = CliRunner().invoke(
+        cli,
+        ["leaderboard", "audit", "--seed", "3", "--format", "json", "--size", "60"]
+        + ["--root", str(hostile_board), "--data-dir", str(v1_data_dir)],
+    )
+    assert run.exit_code == 0, run.output  # nothing flagged, the audit ran to its end
+    result = json.loads(run.stdout)  # nothing printed into the JSON
+    rows = {e["method"]: e for e in result["entries"]}
+    assert "hello from a plug-in" not in run.stdout and "hello from a plug-in" in run.stderr
+    assert "and from its C library" in capfd.readouterr().err
+    writer = rows["aa-writer"]["reason"]
+    assert writer.startswith("failed: method 'aa-writer'") and "is read-only" in writer
+    assert "odmd_hostile_aa.py" in writer  # located in the plug-in
+    assert rows["ac-exit"]["reason"].startswith(
+        "failed: method 'ac-exit' (odmd_hostile_ac, from odmd-hostile 1.0) exited"
+    )
+    assert "MemoryError: a plug-in out of memory" in rows["ad-memory"]["reason"]
+    assert rows["ab-unlocker"]["runnable"] and rows["ae-printer"]["runnable"]
+    assert rows["box-ls"]["runnable"] and rows["box-ls"]["flagged"] is False
+    # Box_LS's means and intervals are those of an audit of Box_LS alone (its p-values are drawn
+    # with more permutations in a larger family)
+    alone = au.audit(hostile_board, 3, size=60, data_dir=v1_data_dir, only=["box-ls"])
+    for s, t in alone["entries"][0]["sets"].items():
+        mine = rows["box-ls"]["sets"][s]
+        assert [mine[k] for k in ("committed", "fresh", "fresh_interval")] == [
+            t[k] for k in ("committed", "fresh", "fresh_interval")
+        ]
+    assert "failed: method 'ac-exit'" in au.audit_table(result)
+
+
+def test_a_method_gets_its_own_read_only_arrays() -> None:
+    ex = au.fresh_sets(5, repeats=1, size=4)["camera"][0]
+    seen = ex.without_truth()
+    with pytest.raises(ValueError, match="read-only"):
+        seen.camera[..., 2] *= 1.05
+    seen.camera.flags.writeable = True
+    seen.camera[..., 2] = 99.0
+    assert not (ex.camera == 99.0).any() and not (ex.without_truth().camera == 99.0).any()
+    assert not seen.boxes.flags.writeable and not seen.detected.flags.writeable
+
+
+# ------------------------------------------------------------------- plug-ins kept in the entry, options
+
+
+def _with(entry: Any, **fields: Any) -> Any:
+    """``entry`` with metadata fields set (``plugin``, ``options``), whatever EntryMeta holds."""
+    import types
+
+    meta = {f.name: getattr(entry.meta, f.name) for f in dataclasses.fields(entry.meta)}
+    return dataclasses.replace(entry, meta=types.SimpleNamespace(**{**meta, **fields}))
+
+
+SOURCE_PLUGIN = """
+import numpy as np
+from odmd_plugin_here.helpers import scale
+
+
+def predict_report(examples, factor=1.0):
+    from odmd_bench_baselines import box_ls
+
+    return np.asarray(box_ls.predict(examples)) * scale(factor), {"n": len(examples)}
+
+
+def predict(examples, factor=1.0):
+    return predict_report(examples, factor)[0]
+"""
+
+
+def test_an_entry_is_re_run_from_its_plug_in_source_with_its_recorded_options(tmp_path: Path) -> None:
+    entries = {e.method: e for e in au.board_entries(BOARD)}
+    base = entries["box-ls"]
+    folder = tmp_path / "entry"
+    package = folder / "plugin" / "odmd_plugin_here"
+    package.mkdir(parents=True)
+    (package / "__init__.py").write_text("")
+    (package / "helpers.py").write_text("def scale(f):\n    return float(f)\n")
+    (package / "method.py").write_text(textwrap.dedent(SOURCE_PLUGIN))
+    entry = dataclasses.replace(
+        _with(
+            base,
+            command="odmd-bench baseline here --factor 2 -o predictions.csv",
+            plugin={"source": "plugin", "module": "odmd_plugin_here.method"},
+            options={"factor": 2.0},
+        ),
+        folder=folder,
+    )
+    target = au.resolve_target(entry, REPO)
+    assert target.reason is None and target.options == {"factor": 2.0}
+    assert target.method is not None and "plug-in source" in target.method.source
+    fresh = au.fresh_sets(2, repeats=1, size=20)
+    errors = au.rerun(target, fresh)
+    plain = au.rerun(au.resolve_target(base, REPO), fresh)
+    ex = fresh["normal"][0]
+    assert np.allclose(errors["normal"], np.abs(ex.depth - 2 * ex.depth) / ex.depth * 100)
+    assert not np.allclose(errors["camera"], plain["camera"])
+    # pinned requirements: not installed here, or another version
+    missing = _with(base, plugin={"requirement": "odmd-nothing-here==1.0"}, options={})
+    assert au.resolve_target(missing, REPO).reason == (
+        "its plug-in is not installed here (pip install odmd-nothing-here==1.0)"
+    )
+    other = _with(base, plugin={"requirement": "numpy==0.0.1"}, options={})
+    assert "is installed here, the entry needs numpy==0.0.1" in str(au.resolve_target(other, REPO).reason)
+
+
+def test_recorded_options_replace_the_command_s_and_are_checked() -> None:
+    entries = {e.method: e for e in au.board_entries(BOARD)}
+    per_set = entries["dbox-p-z-per-set"]
+    target = au.resolve_target(_with(per_set, options={"config": "p", "selection": "overall"}), REPO)
+    assert target.reason is None and target.options == {"config": "p", "selection": "overall"}
+    target = au.resolve_target(_with(entries["box-ls"], options={"factor": 2}), REPO)
+    assert target.reason == "method 'box-ls' takes no option factor"
+    # no options recorded: those of the command, as before
+    assert au.resolve_target(per_set, REPO).options == {"config": "p-z", "selection": "per-set"}
 
 
 def test_bad_input_exits_2_and_names_the_problem(tmp_path: Path) -> None:
@@ -400,6 +834,7 @@ def test_bad_input_exits_2_and_names_the_problem(tmp_path: Path) -> None:
 
 
 def test_the_committed_audit_matches_the_board() -> None:
+    """Every audited entry is on the board; an entry no audit lists is "not audited yet", which is allowed."""
     audits, problems = read_audits(BOARD)
     assert problems == [] and audits, "record an audit: odmd-bench leaderboard audit --seed N --record"
     from odmd_bench.leaderboard.audit_files import shown
@@ -411,6 +846,30 @@ def test_the_committed_audit_matches_the_board() -> None:
     audited = {e["method"] for a in audits for e in a["entries"]}
     assert shipped <= audited <= {e.method for e in entries}  # every shipped entry of the board audited
     assert shipped <= set(shown(audits))
+    for doc in audits:  # shipped methods are re-run in every recorded audit
+        assert all(e["runnable"] for e in doc["entries"] if e["method"] in shipped), [
+            e["reason"] for e in doc["entries"]
+        ]
+
+
+def test_an_entry_no_audit_lists_is_allowed(audited_board: Path, v1_data_dir: Path, tmp_path: Path) -> None:
+    """A contributor's entry added after the audit: plain check passes, the board shows it as not audited."""
+    _entry(audited_board, v1_data_dir, "parallax", "parallax", tmp_path)
+    built = lb.build(audited_board, v1_data_dir, n_resamples=FAST)
+    assert built.audits.get("parallax") is None and built.audits["box-ls"]["seed"] == 3
+    assert lb.check(audited_board, v1_data_dir, n_resamples=FAST) == []
+
+
+@pytest.mark.slow
+def test_check_audits_passes_on_the_committed_audit(
+    v1_data_dir: Path, original_release: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The committed audit (recorded on an Intel Xeon) re-run here, whatever the processor."""
+    pytest.importorskip("torch")
+    monkeypatch.setattr(au, "PERMUTATIONS", 9_999)  # the committed audit's
+    said: list[str] = []
+    assert ac.rerun_audits(BOARD, v1_data_dir, original_release, progress=said.append) == []
+    assert any("of what another processor may give" in line for line in said), said
 
 
 @pytest.mark.slow

@@ -267,7 +267,11 @@ def test_a_method_never_sees_the_answer(plugins: Path) -> None:
     assert ex.extras and np.isfinite(ex.depth).all() and ex.observation_depth is not None
     view = ex.without_truth()
     assert np.isnan(view.depth).all() and view.observation_depth is None and view.extras == {}
-    assert view.boxes is ex.boxes and view.camera is ex.camera and view.attrs == ex.attrs
+    assert view.attrs == ex.attrs
+    for name in ("boxes", "detected", "camera"):  # its own read-only copies (issue 45)
+        mine = getattr(view, name)
+        assert np.array_equal(mine, getattr(ex, name)) and not np.shares_memory(mine, getattr(ex, name))
+        assert not mine.flags.writeable
     with pytest.raises(odmd_bench.MethodError, match="returned 4 non-finite depths"):
         methods.load("peek").run(ex)
     seqs = odmd_bench.read_sequences(DOCS / "sequences-example.csv", image_size=(4032, 3024))

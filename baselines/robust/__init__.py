@@ -107,6 +107,11 @@ the prior and never leaves the prior's range. Fallbacks: fewer than two usable
 observations give 0 (``too_few_detections``); used observations all at the same camera
 ``z`` give 0 (``fit_failed``: depth is not observable), as Box_LS does.
 
+Error bars: :func:`predict_spread` (:mod:`~odmd_bench_baselines.robust.spread`) gives
+each estimate's spread, the posterior standard deviation of ``log Z`` from the box
+sizes, which ``odmd-bench baseline robust --interval 0.9`` turns into intervals
+calibrated on val (:mod:`odmd_bench.predict.intervals`).
+
 Hyperparameters (:data:`DEFAULT_PARAMS`) were chosen on the ``val`` sets only by
 ``python -m odmd_bench_baselines.robust_search`` (see that module for the grid and the command).
 """
@@ -129,6 +134,7 @@ from odmd_bench_baselines.robust.model import (
 )
 from odmd_bench_baselines.robust.scale import fit_scale
 from odmd_bench_baselines.robust.solver import fit
+from odmd_bench_baselines.robust.spread import predict_spread
 
 __all__ = [
     "OPTIONS",
@@ -148,4 +154,5 @@ __all__ = [
     "predict",
     "predict_details",
     "predict_report",
+    "predict_spread",
 ]

@@ -79,12 +79,22 @@ def default_output(name: str, benchmark: str, split: str) -> Path:
     help="Predictions CSV to write ('-': stdout, the messages then go to stderr; "
     "default: preds-NAME-BENCHMARK-SPLIT.csv here).",
 )
+@click.option(
+    "--interval",
+    type=click.FloatRange(0, 1, min_open=True, max_open=True),
+    default=None,
+    metavar="LEVEL",
+    help="Also write error bars: a central interval of this nominal coverage (e.g. 0.9) and a "
+    "normal's depth_std, calibrated on the benchmark's val sets (split conformal, on the "
+    "method's own spread where it gives one); docs/uncertainty.md.",
+)
 @data_dir_option
 def baseline(
     name: str,
     benchmark: str,
     split: str,
     output: Path | None,
+    interval: float | None,
     data_dir: Path | None,
     **method_values: Any,  # the options method NAME declares (MethodCommand)
 ) -> None:
@@ -121,13 +131,32 @@ def baseline(
         warnings += [f"{set_name}: {w}" for w in checked]
         depths[set_name], reports[set_name] = method.run(examples, **options)
 
+    uncertainty = None
+    said_interval = ""
+    if interval is not None:
+        from odmd_bench.predict.intervals import calibrate_method, method_spread
+
+        calibration = calibrate_method(method, options, benchmark, interval, data_dir)
+        uncertainty = {
+            s: calibration.intervals(depths[s], method_spread(method, ex, options), key=s)
+            for s, ex in sets.items()
+        }
+        said_interval = calibration.describe()
+        if split == "val":
+            warnings.append("the intervals are calibrated on the very val sets they are for (in-sample)")
     if to_stdout:
-        click.echo(format_predictions(split, depths, benchmark=benchmark), nl=False)
+        click.echo(
+            format_predictions(split, depths, benchmark=benchmark, uncertainty=uncertainty, level=interval),
+            nl=False,
+        )
     else:
-        write_predictions(path, split, depths, benchmark=benchmark)
+        write_predictions(path, split, depths, benchmark=benchmark, uncertainty=uncertainty, level=interval)
 
     def say(line: str) -> None:
         click.echo(line, err=to_stdout)
+
+    if said_interval:
+        say(said_interval)
 
     n = sum(len(v) for v in depths.values())
     where = "standard output" if to_stdout else str(path)

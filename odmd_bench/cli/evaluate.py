@@ -198,6 +198,13 @@ def evaluate_command(
     help="Level of the interval; the test's threshold is 1 - confidence.",
 )
 @click.option(
+    "--metric",
+    type=click.Choice(["percent_error", "interval_score"]),
+    default="percent_error",
+    show_default=True,
+    help="What to compare: the percent error, or the interval score (both files need an interval).",
+)
+@click.option(
     "--fail-if-worse",
     is_flag=True,
     help="Exit with status 1 when B (the candidate) is significantly worse than A (the baseline) "
@@ -214,6 +221,7 @@ def compare_command(
     seed: int,
     resamples: int,
     confidence: float,
+    metric: str,
     fail_if_worse: bool,
 ) -> None:
     """Compare two predictions files A and B on the same benchmark and split.
@@ -243,6 +251,7 @@ def compare_command(
         seed=seed,
         confidence=confidence,
         names=(name_a, name_b),
+        metric=metric,
     )
     _warn([f"A: {w}" for w in ra.warnings] + [f"B: {w}" for w in rb.warnings])
     _emit((format_comparison(c, fmt), output, "the comparison"))

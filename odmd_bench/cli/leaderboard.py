@@ -117,7 +117,7 @@ def check_command(root: Path | None, data_dir: Path | None, original: Path | Non
         )
     differences = list(report.differences)
     if audits and not report.differences:
-        from odmd_bench.leaderboard.audit import rerun_audits
+        from odmd_bench.leaderboard.audit_check import rerun_audits
 
         differences = rerun_audits(
             folder, data_dir, original, progress=lambda line: click.echo(line, err=True)
@@ -474,7 +474,16 @@ def export_command(
 @click.option(
     "--record",
     is_flag=True,
-    help="Write the audit to leaderboard/audits/SEED.json (then run leaderboard build).",
+    help="Write the audit to leaderboard/audits/SEED.json (then run leaderboard build); refused where "
+    "an entry a record re-ran, or a shipped method's, cannot be re-run here.",
+)
+@click.option(
+    "--only",
+    "only",
+    multiple=True,
+    metavar="METHOD",
+    help="Audit this entry (a method id of the odmd-v1 test board) alone; repeat for more "
+    "[default: every entry].",
 )
 @_data_option
 @_original_option
@@ -485,6 +494,7 @@ def audit_command(
     size: int | None,
     fmt: str,
     record: bool,
+    only: tuple[str, ...],
     data_dir: Path | None,
     original: Path | None,
 ) -> None:
@@ -492,13 +502,16 @@ def audit_command(
 
     The Normal, Camera and Object test sets are drawn again (same generator and
     configuration, seeds derived from SEED; Robot is real and left out), every entry whose
-    command is `odmd-bench baseline NAME ...` of an installed method is re-run on them with
-    its recorded options, and its committed test means are compared with the fresh ones.
-    An entry is flagged when its committed score is better than chance allows (one-sided
-    permutation test, Holm-corrected; leaderboard/README.md). Exit status: 0 with nothing
-    flagged, 1 when an entry is flagged, 2 on bad input.
+    method can be run here (shipped, an installed plug-in, or a plug-in kept in its entry
+    folder) is re-run on them with its recorded options, and its committed test means are
+    compared with the fresh ones. An entry is flagged when its committed score is better
+    than chance allows (one-sided permutation test, Holm-corrected; leaderboard/README.md).
+    An entry that cannot be re-run is shown "not audited: REASON"; a plug-in that fails,
+    exits or prints is contained and shown "failed: REASON". Exit status: 0 with nothing
+    flagged, 1 when an entry is flagged, 2 on bad input or a refused --record.
     """
-    from odmd_bench.leaderboard.audit import audit, audit_json, audit_table, flagged
+    from odmd_bench.errors import UsageError
+    from odmd_bench.leaderboard.audit import audit, audit_json, audit_table, flagged, record_problems
     from odmd_bench.leaderboard.audit_files import record as write_record
 
     folder = _root(root)
@@ -509,12 +522,20 @@ def audit_command(
         size=size,
         data_dir=data_dir,
         original=original,
+        only=list(dict.fromkeys(only)) or None,
         progress=lambda line: click.echo(line, err=True),
     )
+    click.echo(audit_json(result) if fmt == "json" else audit_table(result), nl=False)
     if record:
+        refused = record_problems(folder, result)
+        if refused:
+            raise UsageError(
+                "not recorded: this audit would replace re-run results with 'not re-run' (record it where "
+                "every such entry runs: pip install -e '.[dbox]', --original PATH, the plug-in installed)",
+                refused,
+            )
         path = write_record(folder, result)
         click.echo(f"recorded {path}; now run `odmd-bench leaderboard build` and commit it", err=True)
-    click.echo(audit_json(result) if fmt == "json" else audit_table(result), nl=False)
     if flagged(result):
         click.get_current_context().exit(1)
 

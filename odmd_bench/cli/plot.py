@@ -166,6 +166,13 @@ def _score_all(
     "--title", default=None, help="The figure's title [default: error kind, set, benchmark, split, examples]."
 )
 @click.option("--csv", "csv_out", type=_OUT, default=None, help="Also write the binned numbers to this CSV.")
+@click.option(
+    "--reliability",
+    is_flag=True,
+    help="Draw a reliability diagram instead: the observed coverage of each file's error bars against "
+    "their nominal level (the normal of depth_std at several levels, the stated interval as one point); "
+    "--csv then writes those numbers.",
+)
 @data_dir_option
 def plot_command(
     preds: tuple[Path, ...],
@@ -179,6 +186,7 @@ def plot_command(
     band: bool,
     title: str | None,
     csv_out: Path | None,
+    reliability: bool,
     data_dir: Path | None,
 ) -> None:
     """Plot error against true depth for one set: one line per predictions file PREDS.
@@ -211,6 +219,9 @@ def plot_command(
         raise UsageError("cannot draw these texts", bad_text)
 
     results = _score_all(preds, set_name, benchmark, split, data_dir)
+    if reliability:
+        _reliability(results, _labels(preds, labels), set_name, output, csv_out, title)
+        return
     curves = error_curves(results, _labels(preds, labels), set_name, error=error, bins=edges)
     first = results[0]
     heading = title or default_title(first.benchmark, first.split, set_name, error, curves[0].n)
@@ -233,6 +244,48 @@ def plot_command(
         click.echo(
             f"note: {outside} of {curves[0].n} examples lie outside the bin edges and are not shown", err=True
         )
+
+
+def _reliability(
+    results: list[Any],
+    labels: list[str],
+    set_name: str,
+    output: Path,
+    csv_out: Path | None,
+    title: str | None,
+) -> None:
+    """``plot --reliability``: coverage against level for the files' error bars on ``set_name``."""
+    from odmd_bench.data.atomic import atomic_texts
+    from odmd_bench.evaluation.plot import draw_reliability
+    from odmd_bench.evaluation.uncertainty import RELIABILITY_LEVELS, reliability
+
+    curves = []
+    lacking = []
+    rows = ["label,kind,level,coverage"]
+    for label, r in zip(labels, results, strict=True):
+        unc = r.uncertainty.get(set_name, {})
+        truth = r.examples[set_name].depth
+        levels: tuple[float, ...] = ()
+        cover: list[float] = []
+        if "depth_std" in unc:
+            levels, cover = RELIABILITY_LEVELS, reliability(truth, r.predictions[set_name], unc["depth_std"])
+            rows += [f"{label},normal,{lv!r},{c!r}" for lv, c in zip(levels, cover, strict=True)]
+        interval = None
+        if "coverage" in r.sets[set_name]:
+            cov = r.sets[set_name]["coverage"]
+            interval = (cov["level"], cov["observed"])
+            rows.append(f"{label},interval,{interval[0]!r},{interval[1]!r}")
+        if not levels and interval is None:
+            lacking.append(f"{label}: no error bars (columns depth_lo, depth_hi, level or depth_std)")
+        curves.append((label, levels, cover, interval))
+    if lacking:
+        raise UsageError("a reliability diagram needs error bars", lacking)
+    first = results[0]
+    heading = title or f"Reliability: {set_name.capitalize()} set\n{first.benchmark} {first.split}"
+    outputs = [(csv_out, "\n".join(rows) + "\n")] if csv_out is not None else []
+    with atomic_texts(outputs, also=[output]) as (figure,):
+        draw_reliability(curves, figure, title=heading)
+    click.echo(f"wrote the reliability diagram to {output}", err=True)
 
 
 COMMANDS: list[click.Command] = [plot_command]

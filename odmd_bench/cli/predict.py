@@ -11,7 +11,14 @@ from typing import TYPE_CHECKING, Any
 
 import click
 
-from odmd_bench.cli.options import FINITE_FLOAT, FiniteFloatRange, MethodCommand, given_options, same_file
+from odmd_bench.cli.options import (
+    FINITE_FLOAT,
+    FiniteFloatRange,
+    MethodCommand,
+    data_dir_option,
+    given_options,
+    same_file,
+)
 from odmd_bench.errors import UsageError
 
 if TYPE_CHECKING:
@@ -119,6 +126,22 @@ def error_summary(truth: Any, depth: Any) -> str:
     default=None,
     help="Depths CSV to write; '-' for standard output (default: SEQUENCES-METHOD.csv here).",
 )
+@click.option(
+    "--interval",
+    type=click.FloatRange(0, 1, min_open=True, max_open=True),
+    default=None,
+    metavar="LEVEL",
+    help="Also write error bars (depth_lo, depth_hi, level, depth_std): a central interval of this "
+    "nominal coverage, calibrated on the val sets of --calibrate-on (pooled over its sets); "
+    "docs/uncertainty.md.",
+)
+@click.option(
+    "--calibrate-on",
+    default="odmd-v1",
+    show_default=True,
+    help="Benchmark whose val sets calibrate --interval (its data is generated or imported as for evaluate).",
+)
+@data_dir_option
 def predict(
     sequences: str,
     method_name: str,
@@ -129,6 +152,9 @@ def predict(
     quaternion_order: Order,
     missing: Missing | None,
     output: str | None,
+    interval: float | None,
+    calibrate_on: str,
+    data_dir: Path | None,
     **method_values: Any,  # the options the method declares (MethodCommand)
 ) -> None:
     """Estimate the depth at the last observation of every sequence in SEQUENCES.csv.
@@ -170,7 +196,13 @@ def predict(
         orientation=orientation,
         quaternion_order=quaternion_order,
     )
-    result = predict_sequences(seqs, method, missing, **options)
+    calibration = None
+    if interval is not None:
+        from odmd_bench.data.registry import resolve_benchmark
+        from odmd_bench.predict.intervals import calibrate_method
+
+        calibration = calibrate_method(method, options, resolve_benchmark(calibrate_on), interval, data_dir)
+    result = predict_sequences(seqs, method, missing, calibration, **options)
     text = format_depths(result)
     to_stdout = output == "-"
     path = target
@@ -196,6 +228,8 @@ def predict(
         f"of {span} observations{chose}; "
         f"depths written to {where}"
     )
+    if calibration is not None:
+        say(f"  error bars: {calibration.describe()}; the pooled factor applies")
     say(f"  {report_line(method, result.counts)}")
     empty = [r for r in result.reasons if r]
     if empty:

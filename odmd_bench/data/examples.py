@@ -148,13 +148,23 @@ class Examples:
         """The same examples as a method may see them, without the answer.
 
         No depth, no per-observation depth and none of the source's ``extras`` (the
-        generator's object positions, clean camera and replaced boxes). The arrays are
-        shared, not copied; ``attrs`` is a copy.
+        generator's object positions, clean camera and replaced boxes). Each call gives
+        its own copies of ``boxes``, ``detected`` and ``camera``, marked read-only (a
+        write raises ``ValueError: assignment destination is read-only`` where the
+        method writes), and a copy of ``attrs``: a method that writes into its input,
+        even after marking a copy writable again, changes nothing another method or the
+        scorer sees.
 
         Every registered method is run on this view (:meth:`odmd_bench.methods.Method.run`),
-        so that a score can never come from the answer.
+        so that a score can never come from the answer, and one method cannot change the
+        input of the next (an audit runs every entry on the same fresh sets).
         """
-        return Examples(boxes=self.boxes, detected=self.detected, camera=self.camera, attrs=dict(self.attrs))
+        return Examples(
+            boxes=_read_only(self.boxes),
+            detected=_read_only(self.detected),
+            camera=_read_only(self.camera),
+            attrs=dict(self.attrs),
+        )
 
     def subset(self, index: np.ndarray | slice) -> Examples:
         """The examples selected by ``index`` (a new object; arrays are copies)."""
@@ -169,6 +179,13 @@ class Examples:
             extras={k: v[index].copy() for k, v in self.extras.items()},
             attrs=dict(self.attrs),
         )
+
+
+def _read_only(array: np.ndarray) -> np.ndarray:
+    """A read-only copy of ``array`` (its own memory: making it writable again reaches nothing else)."""
+    out = np.array(array, copy=True)
+    out.flags.writeable = False
+    return out
 
 
 def set_problems(ex: Examples) -> list[str]:

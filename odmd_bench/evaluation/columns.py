@@ -5,13 +5,16 @@ from __future__ import annotations
 import difflib
 import re
 
+from odmd_bench.evaluation.uncertainty import UNCERTAINTY_COLUMNS, header_problems
 from odmd_bench.inputs.formats import SEQUENCE_COLUMNS
 from odmd_bench.inputs.problems import Problems, closest, plural, show
 
 #: Columns every predictions file must have.
 REQUIRED_COLUMNS: tuple[str, ...] = ("split", "set", "index", "depth")
-#: Columns that are read when present; any other column is ignored.
+#: Columns that are read when present; any other column is ignored. The uncertainty
+#: columns (:data:`~odmd_bench.evaluation.uncertainty.UNCERTAINTY_COLUMNS`) are read too.
 OPTIONAL_COLUMNS: tuple[str, ...] = ("benchmark",)
+_KNOWN = REQUIRED_COLUMNS + OPTIONAL_COLUMNS + UNCERTAINTY_COLUMNS
 #: Header cells a message lists at most.
 _HEADER_SHOWN = 12
 
@@ -43,18 +46,19 @@ def check_header(header: list[str], problems: Problems) -> dict[str, int] | None
             problems.add(f"column {show(name)} appears more than once in the header")
         else:
             cols[name] = i
-    for c in OPTIONAL_COLUMNS:
+    for c in OPTIONAL_COLUMNS + UNCERTAINTY_COLUMNS:
         if c not in cols:
             for h in header:
-                if h not in REQUIRED_COLUMNS and _misspelt(h, c):
+                if h not in _KNOWN and _misspelt(h, c):
                     problems.add(
                         f"column {show(h)} looks like the optional column {c!r} misspelt, whose "
                         f"values would then be ignored: name it {c} (or rename it, if it is something else)"
                     )
+    header_problems(cols, problems)
     missing = [c for c in REQUIRED_COLUMNS if c not in cols]
     if not missing:
         return None if problems else cols
-    spare = [h for h in header if h not in REQUIRED_COLUMNS + OPTIONAL_COLUMNS][:100]
+    spare = [h for h in header if h not in _KNOWN][:100]
     for c in missing:
         near = closest(c, spare)
         found = near[len("; did you mean ") : -1] if near else ""

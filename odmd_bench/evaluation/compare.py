@@ -134,13 +134,14 @@ class Comparison:
     benchmark: str = ""
     split: str = ""
     provenance: dict[str, Any] = field(default_factory=dict)
+    metric: str = "percent_error_mean"
 
     def to_dict(self) -> dict[str, Any]:
         """The JSON object that ``compare --format json`` prints."""
         return {
             "benchmark": self.benchmark,
             "split": self.split,
-            "metric": "percent_error_mean",
+            "metric": self.metric,
             "difference": "A - B",
             "sets": {s: asdict(d) for s, d in self.sets.items()},
             "all": asdict(self.all),
@@ -525,8 +526,13 @@ def compare_results(
     n_resamples: int = 2000,
     seed: int = 0,
     confidence: float = 0.95,
+    metric: str = "percent_error",
 ) -> Comparison:
-    """Compare two evaluations of the same benchmark, split and sets (percent error)."""
+    """Compare two evaluations of the same benchmark, split and sets.
+
+    ``metric``: ``"percent_error"`` (default) or ``"interval_score"`` (both files need an
+    interval: :meth:`~odmd_bench.evaluation.result.EvaluationResult.errors`).
+    """
     problems = []
     if (a.benchmark, a.split) != (b.benchmark, b.split):
         problems.append(f"A is {a.benchmark} {a.split}, B is {b.benchmark} {b.split}")
@@ -535,10 +541,20 @@ def compare_results(
     ha, hb = a.provenance.get("sets_content_sha256", {}), b.provenance.get("sets_content_sha256", {})
     if not problems and ha != hb:
         problems.append("A and B were scored against different data (set content hashes differ)")
+    if not problems and metric == "interval_score":
+        levels = [r.sets[next(iter(r.sets))].get("coverage", {}).get("level") for r in (a, b)]
+        if None not in levels and levels[0] != levels[1]:
+            problems.append(
+                f"A's intervals are at level {levels[0]:g}, B's at {levels[1]:g}: their interval scores differ in kind"
+            )
     if problems:
         raise UsageError("A and B cannot be compared", problems)
     c = compare_errors(
-        a.percent_errors(), b.percent_errors(), n_resamples=n_resamples, seed=seed, confidence=confidence
+        a.errors(metric, "A"),
+        b.errors(metric, "B"),
+        n_resamples=n_resamples,
+        seed=seed,
+        confidence=confidence,
     )
     provenance = {
         "version": a.provenance.get("version"),
@@ -555,6 +571,7 @@ def compare_results(
         benchmark=a.benchmark,
         split=a.split,
         provenance=provenance,
+        metric=f"{metric}_mean",
     )
 
 
@@ -569,6 +586,7 @@ def compare_files(
     seed: int = 0,
     confidence: float = 0.95,
     names: tuple[str | None, str | None] = (None, None),
+    metric: str = "percent_error",
 ) -> tuple[Comparison, EvaluationResult, EvaluationResult]:
     """Validate and score two predictions files, then compare them.
 
@@ -595,5 +613,5 @@ def compare_files(
     if problems:
         raise ValidationError("the predictions cannot be compared", problems)
     a, b = results
-    c = compare_results(a, b, n_resamples=n_resamples, seed=seed, confidence=confidence)
+    c = compare_results(a, b, n_resamples=n_resamples, seed=seed, confidence=confidence, metric=metric)
     return c, a, b

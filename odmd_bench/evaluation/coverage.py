@@ -109,6 +109,13 @@ def check_coverage(
     }
     if problems:
         raise problems.error(parsed.name)
+    uncertainty = {
+        s: {
+            c: _place_values(parsed, placed, code.get(s, -1), int(sizes[s]), v)
+            for c, v in parsed.uncertainty.items()
+        }
+        for s in scope
+    }
     return Predictions(
         path=parsed.name,
         sha256=parsed.sha256,
@@ -118,7 +125,19 @@ def check_coverage(
         n_rows=parsed.n_rows,
         ignored_columns=parsed.ignored_columns,
         warnings=_warnings(parsed, placed, ~in_scope, scope),
+        uncertainty=uncertainty if parsed.uncertainty else {},
+        level=parsed.level,
     )
+
+
+def _place_values(
+    parsed: ParsedPredictions, placed: np.ndarray, code: int, n: int, values: np.ndarray
+) -> np.ndarray:
+    """``(n,)`` one uncertainty column of a set by index (every index has a row by now)."""
+    out = np.full(n, np.nan)
+    mine = placed & (parsed.codes == code)
+    out[parsed.indices[mine]] = values[mine]
+    return out
 
 
 def _out_of_range(parsed: ParsedPredictions, rows: np.ndarray, n_row: np.ndarray, problems: Problems) -> None:

@@ -27,6 +27,7 @@ from odmd_bench.data.registry import BENCHMARKS, DEFAULT_BENCHMARK, Benchmark, r
 from odmd_bench.errors import ValidationError
 from odmd_bench.evaluation.columns import check_header, single_value
 from odmd_bench.evaluation.rows import Rows
+from odmd_bench.evaluation.uncertainty import UNCERTAINTY_COLUMNS, check_values
 from odmd_bench.inputs.problems import SHOWN, Problems, closest, show
 from odmd_bench.inputs.records import decode, records
 from odmd_bench.inputs.source import Source, read_source
@@ -51,6 +52,10 @@ class ParsedPredictions:
         problems: every problem found; empty when parsed with ``strict=True``.
         benchmark_column: whether the file has a ``benchmark`` column (else its benchmark
             came from the argument or the default).
+        uncertainty: ``{column: (R,) float64}`` of the uncertainty columns the file has
+            (:mod:`~odmd_bench.evaluation.uncertainty`), aligned with ``depths``; empty
+            without them.
+        level: the interval's nominal coverage (the ``level`` column), or None.
     """
 
     name: str
@@ -67,6 +72,8 @@ class ParsedPredictions:
     nonpositive: dict[str, tuple[tuple[int, str], ...]] = field(default_factory=dict, repr=False)
     problems: Problems = field(default_factory=Problems, repr=False, compare=False)
     benchmark_column: bool = False
+    uncertainty: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
+    level: float | None = None
 
 
 def parse_predictions(
@@ -171,7 +178,10 @@ def _finish(
     set_problems = Problems()
     if bench_name is not None:
         keep &= _check_set_names(names, codes, lines, BENCHMARKS[bench_name].sets, bench_name, set_problems)
-    problems.extend(Problems.by_line(set_problems, rows.values))
+    extra = {c: np.frombuffer(v, dtype=np.float64) for c, v in rows.extra_values.items()}
+    extra_problems = Problems()
+    level = check_values(extra, lines, extra_problems) if extra else None
+    problems.extend(Problems.by_line(set_problems, rows.values, extra_problems))
     keep &= ~_duplicates(names, codes, indices, lines, keep, problems)
     return ParsedPredictions(
         name=label,
@@ -179,7 +189,11 @@ def _finish(
         benchmark=bench_name,
         split=split,
         n_rows=rows.n,
-        ignored_columns=tuple(h for h in header if h not in ("split", "set", "index", "depth", "benchmark")),
+        ignored_columns=tuple(
+            h
+            for h in header
+            if h not in ("split", "set", "index", "depth", "benchmark", *UNCERTAINTY_COLUMNS)
+        ),
         set_names=names,
         codes=codes[keep],
         indices=indices[keep],
@@ -188,6 +202,8 @@ def _finish(
         nonpositive={names[c]: tuple(v) for c, v in rows.nonpositive.items()},
         problems=problems,
         benchmark_column="benchmark" in rows.cols,
+        uncertainty={c: v[keep] for c, v in extra.items()},
+        level=level,
     )
 
 

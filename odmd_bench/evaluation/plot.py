@@ -133,4 +133,57 @@ def draw_error_curves(
         fig.savefig(tmp, format="png", dpi=DPI, metadata={"Software": None})
 
 
-__all__ = ["DPI", "FIGSIZE", "default_title", "draw_error_curves", "text_problems"]
+def draw_reliability(
+    curves: Sequence[tuple[str, Sequence[float], Sequence[float], tuple[float, float] | None]],
+    path: str | os.PathLike[str],
+    *,
+    title: str,
+) -> None:
+    """Write a PNG: a reliability diagram, observed coverage against the nominal level.
+
+    Args:
+        curves: ``(label, levels, coverages, interval)`` per file: the coverage of the
+            normal's central interval at each level (empty without ``depth_std``), and
+            the stated interval's ``(level, coverage)`` (None without one).
+        path: the PNG to write (atomically).
+        title: the figure's title.
+    """
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    from odmd_bench.data.atomic import atomic_path
+
+    fig = Figure(figsize=(6.4, 6.4), dpi=DPI, layout="constrained")
+    FigureCanvasAgg(fig)
+    ax = fig.subplots()
+    ax.plot([0, 1], [0, 1], color="0.5", linestyle="--", linewidth=1, label="calibrated (coverage = level)")
+    for label, levels, coverages, interval in curves:
+        color = None
+        if len(levels):
+            (line,) = ax.plot(
+                levels, coverages, marker="o", markersize=4, linewidth=1.6, label=f"{label}: normal"
+            )
+            color = line.get_color()
+        if interval is not None:
+            ax.plot(
+                [interval[0]],
+                [interval[1]],
+                marker="D",
+                markersize=8,
+                linestyle="none",
+                color=color,
+                label=f"{label}: stated interval ({100 * interval[1]:.1f}% at {interval[0]:g})",
+            )
+    ax.set_xlim(0, 1)
+    ax.set_ylim(0, 1)
+    ax.set_aspect("equal")
+    ax.set_xlabel("nominal level of the central interval")
+    ax.set_ylabel("observed coverage")
+    ax.grid(alpha=0.35)
+    ax.legend(loc="upper left", fontsize=8, title="below the line: too narrow; above: too wide")
+    ax.set_title(title, fontsize=11)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png", dpi=DPI, metadata={"Software": None})
+
+
+__all__ = ["DPI", "FIGSIZE", "default_title", "draw_error_curves", "draw_reliability", "text_problems"]

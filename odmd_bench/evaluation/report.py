@@ -22,7 +22,8 @@ from odmd_bench.data.atomic import atomic_write
 from odmd_bench.errors import UsageError
 from odmd_bench.evaluation.compare import Comparison, PairedDifference
 from odmd_bench.evaluation.metrics import STATS
-from odmd_bench.evaluation.result import PER_EXAMPLE_COLUMNS, EvaluationResult
+from odmd_bench.evaluation.result import PER_EXAMPLE_COLUMNS as PER_EXAMPLE_COLUMNS
+from odmd_bench.evaluation.result import EvaluationResult
 
 FORMATS: tuple[str, ...] = ("table", "json", "csv", "markdown")
 
@@ -80,7 +81,71 @@ def format_table(result: EvaluationResult) -> str:
     lines.append(f"{'All':<{name_w}} {n_all:>6}{result.all_percent_error_mean:>{w}.2f}")
     lines.append("")
     lines.append(f"All = mean of the mean percent errors of {', '.join(result.sets)}")
+    if result.uncertainty:
+        lines += ["", *_uncertainty_table(result)]
     return "\n".join(lines) + "\n"
+
+
+# --- uncertainty (only for files with the optional columns) ---------------------------
+
+
+def _unc_columns(result: EvaluationResult) -> list[tuple[str, str, Callable[[dict[str, Any]], str]]]:
+    """``(header, csv name, cell of a set's metrics)`` for the uncertainty scores present."""
+    first = next(iter(result.sets.values()))
+    cols: list[tuple[str, str, Callable[[dict[str, Any]], str]]] = []
+    if "coverage" in first:
+        cols += [
+            ("coverage %", "coverage", lambda m: f"{100 * m['coverage']['observed']:.2f}"),
+            ("- level", "coverage_error", lambda m: signed(100 * m["coverage"]["error"])),
+            ("below %", "below", lambda m: f"{100 * m['coverage']['below']:.2f}"),
+            ("above %", "above", lambda m: f"{100 * m['coverage']['above']:.2f}"),
+            ("width %", "sharpness_mean", lambda m: f"{m['sharpness']['mean']:.2f}"),
+            ("interval score %", "interval_score_mean", lambda m: f"{m['interval_score']['mean']:.2f}"),
+        ]
+    if "crps" in first:
+        cols.append(("CRPS %", "crps_mean", lambda m: f"{m['crps']['mean']:.2f}"))
+    return cols
+
+
+def _unc_all(result: EvaluationResult) -> dict[str, str]:
+    """The ``All`` row's cells of the uncertainty table, by csv name."""
+    a = result.all_uncertainty
+    out: dict[str, str] = {
+        k: f"{a[k]:.2f}" for k in ("sharpness_mean", "interval_score_mean", "crps_mean") if k in a
+    }
+    if "coverage" in a:
+        out["coverage"] = f"{100 * a['coverage']:.2f}"
+        out["coverage_error"] = signed(100 * a["coverage_error"])
+    return out
+
+
+def _unc_title(result: EvaluationResult) -> str:
+    first = next(iter(result.sets.values()))
+    parts = []
+    if "coverage" in first:
+        parts.append(f"central {first['coverage']['level']:g} interval (depth_lo, depth_hi)")
+    if "crps" in first:
+        parts.append("normal N(depth, depth_std^2)")
+    return "uncertainty: " + " and ".join(parts) + "; in % of the true depth"
+
+
+def _uncertainty_table(result: EvaluationResult) -> list[str]:
+    cols = _unc_columns(result)
+    rows = [[s] + [cell(m) for _, _, cell in cols] for s, m in result.sets.items()]
+    total = _unc_all(result)
+    rows.append(["All"] + [total.get(key, "") for _, key, _ in cols])
+    head = ["set"] + [h for h, _, _ in cols]
+    widths = [max(len(head[i]), *(len(r[i]) for r in rows)) for i in range(len(head))]
+
+    def line(cells: list[str]) -> str:
+        return "  ".join(
+            [f"{cells[0]:<{widths[0]}}"] + [f"{c:>{widths[i]}}" for i, c in enumerate(cells[1:], 1)]
+        )
+
+    out = [_unc_title(result), line(head), "-" * len(line(head))]
+    out += [line(r) for r in rows[:-1]] + ["-" * len(line(head)), line(rows[-1])]
+    out.append("All = mean over the sets; '- level': observed coverage minus the stated level (points)")
+    return out
 
 
 def format_markdown(result: EvaluationResult) -> str:
@@ -100,6 +165,15 @@ def format_markdown(result: EvaluationResult) -> str:
     n_all = sum(m["n"] for m in result.sets.values())
     cells = ["**All**", str(n_all), f"**{result.all_percent_error_mean:.2f}**"] + [""] * (len(cols) - 3)
     lines.append("| " + " | ".join(cells) + " |")
+    if result.uncertainty:
+        ucols = _unc_columns(result)
+        lines += ["", f"**{_unc_title(result)}**", ""]
+        lines.append("| set | " + " | ".join(h for h, _, _ in ucols) + " |")
+        lines.append("| --- | " + " | ".join("---:" for _ in ucols) + " |")
+        for s, m in result.sets.items():
+            lines.append(f"| {s} | " + " | ".join(cell(m) for _, _, cell in ucols) + " |")
+        total = _unc_all(result)
+        lines.append("| **All** | " + " | ".join(total.get(key, "") for _, key, _ in ucols) + " |")
     return "\n".join(lines) + "\n"
 
 
@@ -109,18 +183,38 @@ def format_csv(result: EvaluationResult) -> str:
     writer = csv.writer(buf, lineterminator="\n")
     cols = ["benchmark", "split", "set", "n"]
     cols += [f"percent_error_{k}" for k in STATS] + [f"absolute_error_{k}" for k in STATS]
-    writer.writerow(cols)
+    extra = _csv_uncertainty(result)
+    writer.writerow(cols + list(extra))
     for s, m in result.sets.items():
         row: list[Any] = [result.benchmark, result.split, s, m["n"]]
         row += [repr(m["percent_error"][k]) for k in STATS]
         row += [repr(m["absolute_error"][k]) for k in STATS]
-        writer.writerow(row)
+        writer.writerow(row + [repr(get(m)) for get in extra.values()])
     n_all = sum(m["n"] for m in result.sets.values())
+    a = result.all_uncertainty
     writer.writerow(
         [result.benchmark, result.split, "All", n_all, repr(result.all_percent_error_mean)]
         + [""] * (len(cols) - 5)
+        + [repr(a[k]) if k in a else "" for k in extra]
     )
     return buf.getvalue()
+
+
+def _csv_uncertainty(result: EvaluationResult) -> dict[str, Callable[[dict[str, Any]], float]]:
+    """The csv's uncertainty columns (none without the optional columns): name -> a set's value."""
+    if not result.uncertainty:
+        return {}
+    first = next(iter(result.sets.values()))
+    out: dict[str, Callable[[dict[str, Any]], float]] = {}
+    if "coverage" in first:
+        out["level"] = lambda m: m["coverage"]["level"]
+        out["coverage"] = lambda m: m["coverage"]["observed"]
+        out["coverage_error"] = lambda m: m["coverage"]["error"]
+        out["sharpness_mean"] = lambda m: m["sharpness"]["mean"]
+        out["interval_score_mean"] = lambda m: m["interval_score"]["mean"]
+    if "crps" in first:
+        out["crps_mean"] = lambda m: m["crps"]["mean"]
+    return out
 
 
 def format_json(result: EvaluationResult) -> str:
@@ -154,11 +248,10 @@ def format_per_example(result: EvaluationResult) -> str:
     """The per-example CSV text (see :func:`per_example_rows`); floats at full precision."""
     cols = per_example_rows(result)
     buf = io.StringIO()
-    buf.write(",".join(PER_EXAMPLE_COLUMNS) + "\n")
-    ints = {"index", "n_detected"}
+    buf.write(",".join(cols) + "\n")
+    ints = {"index", "n_detected", "covered"}
     as_text = [
-        cols[c].tolist() if c in ints or c == "set" else [repr(float(v)) for v in cols[c]]
-        for c in PER_EXAMPLE_COLUMNS
+        cols[c].tolist() if c in ints or c == "set" else [repr(float(v)) for v in cols[c]] for c in cols
     ]
     for row in zip(*as_text, strict=True):
         buf.write(",".join(str(v) for v in row) + "\n")
@@ -203,8 +296,9 @@ _CMP_COLS = ["set", "n", "A mean %", "B mean %", "A - B", "interval", "p", "verd
 
 
 def _cmp_note(c: Comparison) -> str:
+    what = "mean percent error" if c.metric == "percent_error_mean" else "mean interval score (% of depth)"
     return (
-        f"A - B of mean percent error; {c.confidence:.0%} paired bootstrap interval and sign-flip test "
+        f"A - B of {what}; {c.confidence:.0%} paired bootstrap interval and sign-flip test "
         f"({c.n_resamples} resamples, seed {c.seed}); negative: A's error is lower"
     )
 

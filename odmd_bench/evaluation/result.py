@@ -50,6 +50,10 @@ class Predictions:
         ignored_columns: columns other than the required and optional ones.
         warnings: legal but suspicious things (zero or negative depths, rows of sets
             that were not asked for), one line each.
+        uncertainty: ``{set: {column: (N,) float64}}`` of the uncertainty columns the
+            file has (:mod:`~odmd_bench.evaluation.uncertainty`), placed as ``depths``;
+            empty without them.
+        level: the interval's nominal coverage, or None without an interval.
     """
 
     path: str
@@ -60,6 +64,8 @@ class Predictions:
     n_rows: int
     ignored_columns: tuple[str, ...] = ()
     warnings: tuple[str, ...] = ()
+    uncertainty: dict[str, dict[str, np.ndarray]] = field(default_factory=dict, repr=False)
+    level: float | None = None
 
 
 @dataclass(frozen=True)
@@ -77,6 +83,11 @@ class EvaluationResult:
         warnings: one line each (see :class:`Predictions`).
         predictions: ``{set: (N,)}`` the estimates scored.
         examples: ``{set: Examples}`` the sets scored (truth and what explains errors).
+        uncertainty: ``{set: {column: (N,)}}`` the uncertainty columns scored (empty
+            without them); their scores are in ``sets`` (``coverage``, ``sharpness``,
+            ``interval_score``, ``crps``) and ``all_uncertainty``.
+        all_uncertainty: ``All`` of the uncertainty scores (the mean over the sets);
+            empty without uncertainty columns.
     """
 
     benchmark: str
@@ -87,10 +98,39 @@ class EvaluationResult:
     warnings: tuple[str, ...] = ()
     predictions: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
     examples: dict[str, Examples] = field(default_factory=dict, repr=False)
+    uncertainty: dict[str, dict[str, np.ndarray]] = field(default_factory=dict, repr=False)
+    all_uncertainty: dict[str, float] = field(default_factory=dict)
 
     def percent_errors(self) -> dict[str, np.ndarray]:
         """``{set: (N,)}`` per-example percent errors."""
         return {s: percent_error(self.examples[s].depth, self.predictions[s]) for s in self.sets}
+
+    def errors(self, metric: str = "percent_error", who: str = "the result") -> dict[str, np.ndarray]:
+        """``{set: (N,)}`` per-example ``metric``: ``"percent_error"`` or ``"interval_score"``.
+
+        Raises:
+            UsageError: an unknown metric, or ``"interval_score"`` without an interval.
+        """
+        from odmd_bench.errors import UsageError
+        from odmd_bench.evaluation.uncertainty import interval_score
+
+        if metric == "percent_error":
+            return self.percent_errors()
+        if metric != "interval_score":
+            raise UsageError(f"unknown metric {metric!r}; expected percent_error or interval_score")
+        if not self.uncertainty or "coverage" not in next(iter(self.sets.values())):
+            raise UsageError(
+                f"{who} has no interval (columns depth_lo, depth_hi, level) to compare on interval_score"
+            )
+        return {
+            s: interval_score(
+                self.examples[s].depth,
+                self.uncertainty[s]["depth_lo"],
+                self.uncertainty[s]["depth_hi"],
+                self.sets[s]["coverage"]["level"],
+            )
+            for s in self.sets
+        }
 
     def to_dict(self) -> dict[str, Any]:
         """The JSON object ``evaluate --format json`` prints (docs/format.md), plus ``warnings``."""
@@ -98,7 +138,11 @@ class EvaluationResult:
             "benchmark": self.benchmark,
             "split": self.split,
             "sets": {s: dict(m) for s, m in self.sets.items()},
-            "all": {"percent_error_mean": self.all_percent_error_mean, "sets": list(self.sets)},
+            "all": {
+                "percent_error_mean": self.all_percent_error_mean,
+                **self.all_uncertainty,
+                "sets": list(self.sets),
+            },
             "provenance": dict(self.provenance),
             "warnings": list(self.warnings),
         }
@@ -124,6 +168,10 @@ class EvaluationResult:
 
     def per_example(self) -> dict[str, np.ndarray]:
         """The per-example columns (:data:`PER_EXAMPLE_COLUMNS`) as ``(N_total,)`` arrays.
+
+        With uncertainty columns, these follow: the file's ``depth_lo``, ``depth_hi``,
+        ``depth_std``, and ``covered`` (1 or 0), ``interval_score`` and ``crps`` (percent
+        of the true depth), each where the file has what it needs.
 
         ``camera_move`` is ``|c_1 - c_n|``, the distance in metres between the first and
         the last camera position. ``box_w`` and ``box_h`` are the last observation's box
@@ -154,12 +202,33 @@ class EvaluationResult:
                     n_det > 0, (area * ex.detected).sum(axis=1) / np.maximum(n_det, 1), 0.0
                 ),
             }
-            for c in PER_EXAMPLE_COLUMNS:
-                parts[c].append(columns[c])
+            if self.uncertainty:
+                columns.update(_per_example_uncertainty(ex.depth, pred, self.uncertainty[s], self.sets[s]))
+            for c in columns:
+                parts.setdefault(c, []).append(columns[c])
         return {c: np.concatenate(v) if v else np.empty(0) for c, v in parts.items()}
 
     def per_example_frame(self) -> pd.DataFrame:
         """The per-example table (:meth:`per_example`) as a DataFrame (needs pandas)."""
         import pandas as pd
 
-        return pd.DataFrame(self.per_example(), columns=list(PER_EXAMPLE_COLUMNS))
+        cols = self.per_example()
+        return pd.DataFrame(cols, columns=list(cols))
+
+
+def _per_example_uncertainty(
+    truth: np.ndarray, pred: np.ndarray, columns: dict[str, np.ndarray], metrics: dict[str, Any]
+) -> dict[str, np.ndarray]:
+    """The per-example uncertainty columns of one set (see :meth:`EvaluationResult.per_example`)."""
+    from odmd_bench.evaluation.uncertainty import covered, crps_normal, interval_score
+
+    out: dict[str, np.ndarray] = {
+        c: columns[c] for c in ("depth_lo", "depth_hi", "depth_std") if c in columns
+    }
+    if "coverage" in metrics:
+        lo, hi = columns["depth_lo"], columns["depth_hi"]
+        out["covered"] = covered(truth, lo, hi).astype(np.int64)
+        out["interval_score"] = interval_score(truth, lo, hi, metrics["coverage"]["level"])
+    if "depth_std" in columns:
+        out["crps"] = crps_normal(truth, pred, columns["depth_std"])
+    return out

@@ -20,6 +20,8 @@ import numpy as np
 
 from odmd_bench.data.registry import BENCHMARKS, SPLITS
 from odmd_bench.evaluation.kinds import MAX_ABS_DEPTH, NONFINITE, OUT_OF_RANGE, TOO_LARGE
+from odmd_bench.evaluation.uncertainty import UNCERTAINTY_COLUMNS
+from odmd_bench.inputs.decimals import parse_decimals
 from odmd_bench.inputs.problems import SHOWN, Problems, clip, closest, show
 from odmd_bench.inputs.records import NONFINITE_CELL, NUMBER
 
@@ -47,6 +49,9 @@ class Rows:
         self.depth, self.index_ok = array("d"), array("b")
         self.nonpositive: dict[int, list[tuple[int, str]]] = {}
         self.n = 0
+        #: The uncertainty columns present, and their cells as numbers (NaN: not a number).
+        self.extra = tuple((c, cols[c]) for c in UNCERTAINTY_COLUMNS if c in cols)
+        self.extra_values = {c: array("d") for c, _ in self.extra}
 
     def add(self, line: int, cells: list[str]) -> None:
         """Check one row and keep what it holds (the hot loop: kept lean on purpose)."""
@@ -91,6 +96,9 @@ class Rows:
         self.index.append(index)
         self.depth.append(depth)
         self.index_ok.append(ok)
+        for c, i in self.extra:
+            text = cells[i]
+            self.extra_values[c].append(float(text) if _is_float(text) else self._bad_cell(c, line, text))
 
     def add_clean(self, text: str, start: int, line: int) -> bool:
         r"""Add every row of ``text[start:]`` (its first line is file line ``line``) if all are clean.
@@ -130,6 +138,8 @@ class Rows:
         self.index = array("q", np.concatenate(found.index).tobytes())
         self.depth = array("d", np.concatenate(found.depth).tobytes())
         self.index_ok = array("b", b"\x01" * found.n)
+        for c, _ in self.extra:
+            self.extra_values[c] = array("d", np.concatenate(found.extra[c]).tobytes())
         return True
 
     def _add_block(self, block: str, line: int, found: _Found) -> bool:
@@ -167,6 +177,24 @@ class Rows:
         depth = np.fromiter(map(float, depths), dtype=np.float64, count=n)
         if not np.all((depth >= -MAX_ABS_DEPTH) & (depth <= MAX_ABS_DEPTH)):
             return False
+        extra: dict[str, np.ndarray] = {}
+        if self.extra:
+            # The level is one value on every row of a good file: read once.
+            varied = []
+            for c, i in self.extra:
+                column = cells[i::width] if c == "level" else []
+                if column and column.count(column[0]) == n:
+                    if not _is_float(column[0]):
+                        return False
+                    extra[c] = np.full(n, float(column[0]))
+                else:
+                    varied.append((c, i))
+            numbers = _number_columns(chars, cells, width, [i for _, i in varied]) if varied else None
+            if varied and numbers is None:
+                return False
+            for k, (c, _) in enumerate(varied):
+                extra[c] = numbers[k]  # type: ignore[index]
+            extra = {c: extra[c] for c, _ in self.extra}
         code = np.fromiter(map(found.names.__getitem__, names), dtype=np.int32, count=n)
         index = np.fromiter(map(int, indices), dtype=np.int64, count=n)
         for r in np.flatnonzero(depth <= 0):
@@ -177,8 +205,21 @@ class Rows:
         found.code.append(code)
         found.index.append(index)
         found.depth.append(depth)
+        for c, values in extra.items():
+            found.extra.setdefault(c, []).append(values)
         found.n += n
         return True
+
+    def _bad_cell(self, column: str, line: int, text: str) -> float:
+        """Record why an uncertainty cell is refused; NaN stands for it from now on."""
+        if not text.strip():
+            kind = f"{column} is missing (an empty cell)"
+        elif NONFINITE_CELL.fullmatch(text):
+            kind = f"{column} is NaN or infinite"
+        else:
+            kind = f"{column} is not a number"
+        self.values.add(kind, f"line {line} ({show(text)})", at=line)
+        return _NAN
 
     def _bad_depth(self, line: int, text: str, depth: float) -> float:
         """Record why a depth is refused; NaN stands for it from now on."""
@@ -190,6 +231,40 @@ class Rows:
             kind = "depth is not a number"
         self.values.add(kind, f"line {line} ({show(text)})", at=line)
         return float("nan")
+
+
+def _number_columns(chars: np.ndarray, cells: list[str], width: int, cols: list[int]) -> np.ndarray | None:
+    """``(len(cols), n)`` the number cells of columns ``cols`` of a clean block, or None if one is no number.
+
+    The uncertainty columns, parsed as the CSV readers' fast path parses numbers
+    (:func:`~odmd_bench.inputs.decimals.parse_decimals`, bit for bit Python's ``float``,
+    whole columns at once); a cell in another form (or too near the block's start for
+    it) goes through the reader's number pattern and ``float``, one by one. (A call per
+    cell for three more columns would nearly double the time a file takes to read.)
+    ``cells`` are the block's cells, in the order of ``chars``.
+    """
+    seps = np.flatnonzero((chars == 44) | (chars == 10))  # the end of every cell but the last
+    ends = np.append(seps, chars.size)
+    starts = np.empty_like(ends)
+    starts[0] = 0
+    starts[1:] = seps + 1
+    dots_at = np.flatnonzero(chars == 46)
+    out = np.empty((len(cols), len(cells) // width))
+    for k, col in enumerate(cols):
+        start, end = starts[col::width], ends[col::width]
+        if dots_at.size:
+            first_dot = dots_at[np.minimum(np.searchsorted(dots_at, start), dots_at.size - 1)]
+            dot = np.where((first_dot >= start) & (first_dot < end), first_dot, end)
+        else:
+            dot = end
+        values, done = parse_decimals(chars, start, end, dot)
+        for i in np.flatnonzero(~done).tolist():
+            cell = cells[i * width + col]
+            if not _is_float(cell):
+                return None
+            values[i] = float(cell)
+        out[k] = values
+    return out
 
 
 class _Found:
@@ -204,6 +279,7 @@ class _Found:
         self.code: list[np.ndarray] = []
         self.index: list[np.ndarray] = []
         self.depth: list[np.ndarray] = []
+        self.extra: dict[str, list[np.ndarray]] = {}
 
 
 def _tally_clean(column: list[str], line: int, valid: Sequence[str], tally: dict[str, list[int]]) -> bool:

@@ -36,6 +36,7 @@ from odmd_bench.evaluation.metrics import all_sets_mean, set_metrics
 from odmd_bench.evaluation.parse import parse_predictions
 from odmd_bench.evaluation.result import EvaluationResult, Predictions
 from odmd_bench.evaluation.twin import twin_fit
+from odmd_bench.evaluation.uncertainty import all_scores, set_scores
 from odmd_bench.inputs.problems import SHOWN
 from odmd_bench.inputs.source import Source
 
@@ -87,6 +88,8 @@ def score(
                 unusable,
             )
         per_set[s] = set_metrics(ex.depth, depth)
+        if predictions.uncertainty:
+            per_set[s].update(set_scores(ex.depth, depth, predictions.uncertainty[s], predictions.level))
         preds[s] = depth.copy()
         used[s] = ex
     bad = [s for s, m in per_set.items() if not all(np.isfinite(list(m["percent_error"].values())))]
@@ -125,6 +128,8 @@ def score(
         warnings=warnings,
         predictions=preds,
         examples=used,
+        uncertainty={s: dict(predictions.uncertainty[s]) for s in per_set} if predictions.uncertainty else {},
+        all_uncertainty=all_scores(per_set) if predictions.uncertainty else {},
     )
 
 

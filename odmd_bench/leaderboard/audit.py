@@ -15,8 +15,10 @@ so its per-example errors on the committed set and on the fresh draws are exchan
 (independent examples of one distribution, each estimated on its own); the one-sided
 p-value is that of a permutation test, ``(1 + #{T* >= T}) / (B + 1)`` over ``B`` random
 relabellings of the pooled errors, which is exact whatever the errors' distribution
-(heavy tails included). ``all`` is the mean of the sets' statistics, permuted within each
-set (stratified). The p-values of every entry and test (three sets and ``all``) are
+(heavy tails included). ``generated_mean`` is the mean of the three sets' statistics,
+permuted within each set (stratified): the mean over the *generated* sets only, not the
+board's All (which includes Robot). The p-values of every entry and test (three sets and
+``generated_mean``) are
 corrected together by Holm's method; an entry is **flagged** when one of its adjusted
 p-values is at most :data:`LEVEL`. So an audit of honest entries flags any of them with
 probability at most :data:`LEVEL` over the draws of the committed and the fresh sets
@@ -34,16 +36,19 @@ import shlex
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from odmd_bench.data.examples import Examples
 from odmd_bench.errors import OdmdError, UsageError, ValidationError
-from odmd_bench.leaderboard.audit_files import audit_json, read_audits
+from odmd_bench.leaderboard.audit_files import audit_json, command_method, shipped
 from odmd_bench.leaderboard.entry import Entry
 from odmd_bench.leaderboard.specs import SET_TITLES
 from odmd_bench.leaderboard.specs import rounded as _r
+
+if TYPE_CHECKING:
+    from odmd_bench.methods import Method
 
 #: The board audited: its generated sets are drawn afresh.
 BENCHMARK = "odmd-v1"
@@ -72,6 +77,8 @@ _METHOD_OPTIONS = ("--weights", "--weights-sha256", "--config", "--selection", "
 #: Spawn keys of the audit's random streams (fresh sets: (repeat, set); statistics: these).
 _PERMUTATION_KEY = 1_000_001
 _BOOTSTRAP_KEY = 1_000_002
+#: How the table labels the mean over the generated sets (JSON: ``generated_mean``).
+MEAN_LABEL = "N+C+O"
 #: The largest seed (the seeds are stored in JSON, read by any language as a double).
 MAX_SEED = 2**53
 
@@ -82,15 +89,17 @@ class Target:
 
     Attributes:
         entry: the entry.
-        name: the registered method its command runs ("" when it cannot be re-run).
+        name: the method its command runs ("" when it cannot be re-run).
         options: the method's recorded options (``weights`` resolved to a path).
-        reason: why it cannot be re-run, or None.
+        reason: why it cannot be re-run, or None; ``failed: ...`` where the method failed.
+        method: the loaded method (None when it cannot be re-run).
     """
 
     entry: Entry
     name: str = ""
     options: dict[str, Any] = field(default_factory=dict)
     reason: str | None = None
+    method: Method | None = None
 
 
 def check_seed(seed: object, what: str = "seed") -> int:
@@ -227,24 +236,44 @@ def parse_command(command: str, benchmark: str = BENCHMARK) -> tuple[str, dict[s
 def resolve_target(entry: Entry, repo: Path, original: str | os.PathLike[str] | None = None) -> Target:
     """How ``entry`` is re-run, or why it cannot be.
 
-    A relative ``weights`` path is resolved in the repository (``repo``), or, written
-    ``ODMD/...``, in the original release's folder ``original``.
+    The method is the entry's ``plugin`` where it has one (``{source, module}``: the
+    module loaded from the entry folder; ``{requirement: NAME==VERSION}``: that version
+    must be installed, nothing is installed here), else the method its command names. Its
+    options are the entry's recorded ``options``, else those of its command
+    (:func:`parse_command`). A relative ``weights`` path is resolved in the repository
+    (``repo``), or, written ``ODMD/...``, in the original release's folder ``original``.
+    A plug-in that exits, raises or prints while it loads is contained: the reason says so.
     """
     from odmd_bench import methods
 
+    plugin = getattr(entry.meta, "plugin", None)
+    recorded = getattr(entry.meta, "options", None)
     try:
-        name, given = parse_command(entry.meta.command, entry.benchmark)
+        if recorded is not None:
+            name, given = command_method(entry.meta.command), dict(recorded)
+        else:
+            name, given = parse_command(entry.meta.command, entry.benchmark)
     except ValueError as e:
-        return Target(entry, reason=str(e))
+        if recorded is None or plugin is None or "module" not in plugin:
+            return Target(entry, reason=str(e))
+        # a plug-in named by its module, run with its recorded options: the command is not needed
+        name, given = entry.method, dict(recorded)
     options: dict[str, Any] = dict(given)
     try:
-        method = methods.load(name)
+        with methods.output_to_stderr():
+            method = _load_method(entry, name, plugin)
     except UsageError as e:
         return Target(entry, reason=f"method {name!r} cannot be loaded: {e.message}")
+    except (KeyboardInterrupt, OdmdError):
+        raise
+    except BaseException as e:  # a plug-in's import ran sys.exit, ran out of memory, ...
+        return Target(entry, reason=f"failed: loading method {name!r} raised {type(e).__name__}: {e}"[:500])
+    if isinstance(method, str):
+        return Target(entry, reason=method)
     refused = [k for k in options if not method.accepts(k)]
     if refused:
         return Target(entry, reason=f"method {name!r} takes no option {', '.join(refused)}")
-    if "weights" in options:
+    if isinstance(options.get("weights"), str):
         text = options["weights"]
         if text.startswith(RELEASE_PLACEHOLDER):
             if original is None:
@@ -259,23 +288,58 @@ def resolve_target(entry: Entry, repo: Path, original: str | os.PathLike[str] | 
         if not path.is_file():
             return Target(entry, reason=f"its weights are not found: {path}")
         options["weights"] = path
-    return Target(entry, name=name, options=options)
+    return Target(entry, name=name, options=options, method=method)
+
+
+def _load_method(entry: Entry, name: str, plugin: Mapping[str, str] | None) -> Any:
+    """The method of ``entry`` (a :class:`~odmd_bench.methods.Method`), or why it cannot be loaded (text)."""
+    from importlib import metadata
+
+    from odmd_bench import methods
+
+    if plugin is None:
+        return methods.load(name)
+    if "requirement" in plugin:
+        dist, _, version = plugin["requirement"].partition("==")
+        try:
+            installed = metadata.version(dist)
+        except metadata.PackageNotFoundError:
+            return f"its plug-in is not installed here (pip install {plugin['requirement']})"
+        if installed != version:
+            return (
+                f"its plug-in {dist} {installed} is installed here, the entry needs {plugin['requirement']}"
+            )
+        if "module" not in plugin:
+            return methods.load(name)
+        return methods.load_module(name, plugin["module"], f"{dist} {installed}")
+    folder = entry.folder / plugin["source"]
+    if not folder.is_dir() or folder.is_symlink():
+        return f"its plug-in source {plugin['source']}/ is not a folder in the entry folder"
+    return methods.load_module(name, plugin["module"], f"the plug-in source of entry {entry.key}", folder)
 
 
 def rerun(target: Target, fresh: Mapping[str, Sequence[Examples]]) -> dict[str, np.ndarray]:
     """Per-example percent errors of ``target`` on each fresh set, its repeats concatenated.
 
+    Each call is contained (:func:`~odmd_bench.methods.run_contained`): its standard
+    output goes to standard error, and a plug-in that exits or raises anything becomes
+    a :class:`~odmd_bench.errors.MethodError`. The method gets its own read-only copy of
+    each set (:meth:`~odmd_bench.data.examples.Examples.without_truth`), so it cannot change
+    the sets the next entry is run on.
+
     Raises:
-        OdmdError: the method refused to run (a missing module, weights failing their
-            hash); :func:`audit` records it as the reason.
+        OdmdError: the method refused to run or failed (a missing module, weights failing
+            their hash, a plug-in's exception); :func:`audit` records it as the reason.
     """
     from odmd_bench import methods
     from odmd_bench.evaluation.metrics import percent_error
 
-    method = methods.load(target.name)
+    method = target.method if target.method is not None else methods.load(target.name)
     out = {}
     for name, draws in fresh.items():
-        parts = [percent_error(ex.depth, method.run(ex, **target.options)[0]) for ex in draws]
+        parts = [
+            percent_error(ex.depth, methods.run_contained(method, ex, **target.options)[0]) for ex in draws
+        ]
         out[name] = np.concatenate(parts)
     return out
 
@@ -330,6 +394,23 @@ def permutation_pvalues(
         >>> float(p["a"][0]), float(p_all[0])
         (0.001, 0.001)
     """
+    counts, counts_all = _exceedances(committed, fresh, rng, n_permutations, (0.0,))
+    p = {s: (1 + c[0]) / (n_permutations + 1) for s, c in counts.items()}
+    return p, (1 + counts_all[0]) / (n_permutations + 1)
+
+
+def _exceedances(
+    committed: Mapping[str, np.ndarray],
+    fresh: Mapping[str, np.ndarray],
+    rng: np.random.Generator,
+    n_permutations: int,
+    shifts: Sequence[float | tuple[Mapping[str, np.ndarray], np.ndarray]],
+) -> tuple[dict[str, np.ndarray], np.ndarray]:
+    """``#{T* >= T + shift}`` for each shift: ``({set: (len(shifts), E)}, (len(shifts), E))``.
+
+    A shift is ``0.0`` (the p-value's count) or ``({set: (E,)}, (E,) for the mean over
+    sets)``; the relabellings are those :func:`permutation_pvalues` draws, whatever the shifts.
+    """
     sets = list(committed)
     observed, pooled, totals, sizes = {}, {}, {}, {}
     for s in sets:
@@ -339,8 +420,16 @@ def permutation_pvalues(
         sizes[s] = (len(c), len(f))
         observed[s] = _statistic(c.sum(axis=0), totals[s], len(c), len(f))
     observed_all = np.mean([observed[s] for s in sets], axis=0)
-    exceed = {s: np.zeros(len(observed[s]), np.int64) for s in sets}
-    exceed_all = np.zeros(len(observed_all), np.int64)
+
+    def threshold(s: str | None, shift: float | tuple[Mapping[str, np.ndarray], np.ndarray]) -> np.ndarray:
+        t = observed_all if s is None else observed[s]
+        by = shift if isinstance(shift, float) else (shift[1] if s is None else shift[0][s])
+        return t + by - _tie(t)
+
+    limits = {s: np.array([threshold(s, x) for x in shifts]) for s in sets}
+    limits_all = np.array([threshold(None, x) for x in shifts])
+    exceed = {s: np.zeros((len(shifts), len(observed[s])), np.int64) for s in sets}
+    exceed_all = np.zeros((len(shifts), len(observed_all)), np.int64)
     done = 0
     while done < n_permutations:
         rows = min(CHUNK, n_permutations - done)
@@ -357,13 +446,12 @@ def permutation_pvalues(
                 drawn = labels @ pooled[s]
                 committed_sum = drawn if n <= m else totals[s] - drawn
             t = _statistic(np.asarray(committed_sum), totals[s], n, m)
-            exceed[s] += (t >= observed[s] - _tie(observed[s])).sum(axis=0)
+            exceed[s] += (t[None] >= limits[s][:, None]).sum(axis=1)
             stats.append(t)
         t_all = np.mean(stats, axis=0)
-        exceed_all += (t_all >= observed_all - _tie(observed_all)).sum(axis=0)
+        exceed_all += (t_all[None] >= limits_all[:, None]).sum(axis=1)
         done += rows
-    p = {s: (1 + exceed[s]) / (n_permutations + 1) for s in sets}
-    return p, (1 + exceed_all) / (n_permutations + 1)
+    return exceed, exceed_all
 
 
 def _block_sums(pooled: np.ndarray, n: int, k: int, rows: int, rng: np.random.Generator) -> np.ndarray:
@@ -508,10 +596,11 @@ class Collected:
 
     Attributes:
         header: the audit's fields but ``test`` and ``entries``.
-        rows: one per entry, ``sets``, ``all`` and ``flagged`` not filled in yet.
+        rows: one per entry, ``sets``, ``generated_mean`` and ``flagged`` not filled in yet.
         audited: the indices in ``rows`` of the re-run entries, in column order.
         committed: ``{set: (n, E)}`` errors on the committed sets, a column per re-run entry.
         fresh: ``{set: (m, E)}`` errors on the fresh draws.
+        shipped: the entries whose method is shipped in this repository (:func:`shipped`).
     """
 
     header: dict[str, Any]
@@ -519,6 +608,7 @@ class Collected:
     audited: list[int]
     committed: dict[str, np.ndarray]
     fresh: dict[str, np.ndarray]
+    shipped: frozenset[str] = frozenset()
 
 
 def collect_errors(
@@ -553,6 +643,7 @@ def collect_errors(
     committed: dict[str, list[np.ndarray]] = {s: [] for s in sets}
     rerun_errors: dict[str, list[np.ndarray]] = {s: [] for s in sets}
     audited: list[int] = []
+    own: set[str] = set()
     for entry in entries:
         result = score_entry(entry, examples)
         row: dict[str, Any] = {
@@ -563,20 +654,24 @@ def collect_errors(
             "runnable": False,
             "reason": None,
             "sets": {},
-            "all": None,
+            "generated_mean": None,
             "flagged": None,
         }
         rows.append(row)
+        if shipped(entry) is not None:
+            own.add(entry.method)
         target = resolve_target(entry, repo, original)
         if target.reason is None:
             say(f"re-running {entry.method} ({target.name}) on the fresh sets")
             try:
                 errors = rerun(target, fresh)
             except OdmdError as e:
-                target = Target(entry, reason=f"it failed on the fresh sets: {e.message}")
+                target = Target(entry, reason=f"failed: {e.message}")
         if target.reason is not None:
             row["reason"] = target.reason
-            say(f"not re-run: {entry.method}: {target.reason}")
+            say(
+                f"{'' if target.reason.startswith('failed: ') else 'not audited: '}{entry.method}: {target.reason}"
+            )
             continue
         row["runnable"] = True
         audited.append(len(rows) - 1)
@@ -597,7 +692,7 @@ def collect_errors(
     empty = np.zeros((0, 0))
     c = {s: np.column_stack(committed[s]) if audited else empty for s in sets}
     f = {s: np.column_stack(rerun_errors[s]) if audited else empty for s in sets}
-    return Collected(header, rows, audited, c, f)
+    return Collected(header, rows, audited, c, f, frozenset(own))
 
 
 def assess(found: Collected, *, progress: Callable[[str], None] | None = None) -> dict[str, Any]:
@@ -629,7 +724,7 @@ def assess(found: Collected, *, progress: Callable[[str], None] | None = None) -
                 row["sets"][s] = _test_dict(
                     c[s][:, k].mean(), f[s][:, k].mean(), ci_sets[s][k], p_sets[s][k], adjusted[k, j]
                 )
-            row["all"] = {
+            row["generated_mean"] = {
                 "sets": sets,
                 **_test_dict(
                     np.mean([c[s][:, k].mean() for s in sets]),
@@ -642,18 +737,24 @@ def assess(found: Collected, *, progress: Callable[[str], None] | None = None) -
             row["flagged"] = bool((adjusted[k] <= LEVEL).any())
     return {
         **found.header,
-        "test": {
-            "statistic": "difference = fresh mean - committed mean of per-example percent errors "
-            "(positive: the committed score is the better one); all = the mean of the sets' differences",
-            "p": "one-sided permutation test, (1 + #{T* >= T}) / (B + 1), relabelling within each set",
-            "permutations": n_permutations,
-            "correction": "holm",
-            "tests": tests,
-            "level": LEVEL,
-            "bootstrap_resamples": BOOTSTRAP,
-            "confidence": CONFIDENCE,
-        },
+        "test": describe_test(tests, n_permutations),
         "entries": rows,
+    }
+
+
+def describe_test(tests: int, n_permutations: int) -> dict[str, Any]:
+    """The audit's ``test`` field: the statistic, the test, its permutations and the Holm family's size."""
+    return {
+        "statistic": "difference = fresh mean - committed mean of per-example percent errors "
+        "(positive: the committed score is the better one); generated_mean = the mean over the "
+        "generated sets (normal, camera, object) of each figure, not the board's All (four sets)",
+        "p": "one-sided permutation test, (1 + #{T* >= T}) / (B + 1), relabelling within each set",
+        "permutations": n_permutations,
+        "correction": "holm",
+        "tests": tests,
+        "level": LEVEL,
+        "bootstrap_resamples": BOOTSTRAP,
+        "confidence": CONFIDENCE,
     }
 
 
@@ -679,52 +780,45 @@ def flagged(result: Mapping[str, Any]) -> list[str]:
     return [e["method"] for e in result["entries"] if e.get("flagged")]
 
 
-def rerun_audits(
-    root: str | os.PathLike[str],
-    data_dir: str | os.PathLike[str] | None = None,
-    original: str | os.PathLike[str] | None = None,
-    progress: Callable[[str], None] | None = None,
-) -> list[str]:
-    """Re-run every recorded audit (``leaderboard check --audits``): one line per difference.
+def record_problems(root: str | os.PathLike[str], result: Mapping[str, Any]) -> list[str]:
+    """Why ``result`` must not be recorded (``audit --record``): empty when it may.
 
-    Each file is audited again with its seed, repeats, sizes, entries and date, and its
-    JSON compared with the committed file's, field by field.
+    An audit recorded in a partial environment must not replace a re-run with "not
+    re-run": an entry of a method shipped in this repository that was not re-run, or an
+    entry that a recorded audit re-ran and this one could not, refuses the record (a
+    contributor's plug-in that is not installed, and was never audited, is recorded as
+    not audited). So does an audit of some entries (``--only``) over a recorded file of
+    the same seed that holds others (their audit would be lost).
     """
-    from odmd_bench.leaderboard.audit_files import audit_path
-    from odmd_bench.leaderboard.diff import diff_json
+    from odmd_bench.leaderboard.audit_files import audit_path, read_audits
 
-    audits, problems = read_audits(root)
-    for doc in audits:
-        name = f"audits/{doc['seed']}.json"
-        committed = {s: int(p["n"]) for s, p in generated_sets().items()}
-        sizes = set(doc["sets"].values())
-        if list(doc["sets"]) != list(committed) or len(sizes) != 1:
+    entries = {e.method: e for e in board_entries(root)}
+    recorded, _ = read_audits(root)
+    before = {e["method"]: d["seed"] for d in recorded for e in d["entries"] if e["runnable"]}
+    problems = []
+    for row in result["entries"]:
+        if row["runnable"]:
+            continue
+        method = shipped(entries[row["method"]]) if row["method"] in entries else None
+        if method is not None:
             problems.append(
-                f"{name}: its sets {doc['sets']} are not those an audit draws ({', '.join(committed)})"
+                f"entry {row['method']} runs {method}, shipped in this repository, and was not re-run here: "
+                f"{row['reason']}"
             )
-            continue
-        size = sizes.pop()
-        if progress is not None:
-            progress(f"re-running {name}")
-        try:
-            again = audit(
-                root,
-                doc["seed"],
-                repeats=doc["repeats"],
-                size=None if all(n == size for n in committed.values()) else size,
-                data_dir=data_dir,
-                original=original,
-                only=[e["method"] for e in doc["entries"]],
-                date=doc["date"],
-                progress=progress,
+        elif row["method"] in before:
+            problems.append(
+                f"entry {row['method']} was re-run by audits/{before[row['method']]}.json and not here: "
+                f"{row['reason']}"
             )
-        except OdmdError as e:
-            problems.append(f"{name}: cannot be re-run: {e.render()}")
-            continue
-        text = audit_path(root, doc["seed"]).read_text(encoding="utf-8")
-        if text != audit_json(again):
-            found = diff_json(text, audit_json(again), name)
-            problems += found or [f"{name}: differs from the re-run (whitespace or field order)"]
+    path = audit_path(root, int(result["seed"]))
+    same = next((d for d in recorded if d["seed"] == result["seed"]), None)
+    if same is not None:
+        dropped = sorted({e["method"] for e in same["entries"]} - {e["method"] for e in result["entries"]})
+        if dropped:
+            problems.append(
+                f"{path.name} holds entries this audit leaves out ({', '.join(dropped)}): recording would drop "
+                "their audit; audit them too (no --only) or use another seed"
+            )
     return problems
 
 
@@ -746,15 +840,18 @@ def audit_table(result: Mapping[str, Any]) -> str:
         f"{result['repeats']} fresh draw(s) of {sizes} examples",
         f"one-sided permutation test ({t['permutations']:,} permutations), Holm over {t['tests']} tests, "
         f"level {t['level']}; difference = fresh - committed mean % error",
+        f"{MEAN_LABEL} = the mean over the generated sets {', '.join(SET_TITLES.get(s, s) for s in result['sets'])}"
+        " (not the board's All, which includes Robot)",
         "",
         f"{'entry':<22} {'set':<7} {'committed':>9} {'fresh':>7} {'95% interval':>17} "
         f"{'difference':>10} {'p':>8} {'p (Holm)':>8}",
     ]
     for e in result["entries"]:
         if not e["runnable"]:
-            lines.append(f"{e['method']:<22} not re-run: {e['reason']}")
+            failed = str(e["reason"]).startswith("failed: ")
+            lines.append(f"{e['method']:<22} {'' if failed else 'not audited: '}{e['reason']}")
             continue
-        for s, v in [*e["sets"].items(), ("all", e["all"])]:
+        for s, v in [*e["sets"].items(), (MEAN_LABEL, e["generated_mean"])]:
             lo, hi = v["fresh_interval"]
             lines.append(
                 f"{e['method']:<22} {s:<7} {_fmt(v['committed']):>9} {_fmt(v['fresh']):>7} "
@@ -768,7 +865,7 @@ def audit_table(result: Mapping[str, Any]) -> str:
     lines.append(
         f"flagged: {', '.join(hits)} (committed score better than the fresh sets allow)"
         if hits
-        else f"nothing flagged: {n_run} of {len(result['entries'])} entries re-run"
+        else f"nothing flagged: {n_run} of {len(result['entries'])} entries audited"
     )
     return "\n".join(lines) + "\n"
 
@@ -791,6 +888,8 @@ __all__ = [
     "bootstrap_intervals",
     "check_seed",
     "collect_errors",
+    "command_method",
+    "describe_test",
     "flagged",
     "fresh_seed",
     "fresh_sets",
@@ -799,7 +898,8 @@ __all__ = [
     "parse_command",
     "permutation_pvalues",
     "permutations_for",
+    "record_problems",
     "rerun",
-    "rerun_audits",
     "resolve_target",
+    "shipped",
 ]

@@ -4,7 +4,7 @@
 result here. ``build`` shows, for each audited entry, the fresh mean beside the committed
 one (:func:`shown`), and refuses an audit file that is malformed or no longer describes
 the board (:func:`audit_problems`: an entry gone, or its predictions changed since);
-``check --audits`` re-runs each file (:func:`~odmd_bench.leaderboard.audit.rerun_audits`).
+``check --audits`` re-runs each file (:func:`~odmd_bench.leaderboard.audit_check.rerun_audits`).
 Nothing here runs a method.
 """
 
@@ -13,6 +13,7 @@ from __future__ import annotations
 import json
 import os
 import re
+import shlex
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -22,6 +23,7 @@ from odmd_bench.leaderboard.specs import rounded
 
 if TYPE_CHECKING:
     from odmd_bench.leaderboard.board import Board
+    from odmd_bench.leaderboard.entry import Entry
 
 #: The folder of recorded audits, in the leaderboard folder.
 AUDITS = "audits"
@@ -49,7 +51,7 @@ _ENTRY = (
     "runnable",
     "reason",
     "sets",
-    "all",
+    "generated_mean",
     "flagged",
 )
 _TEST = ("committed", "fresh", "fresh_interval", "difference", "p", "p_adjusted")
@@ -176,18 +178,28 @@ def _entry_problems(e: object, sets: list[str]) -> list[str]:
         return ["must be an object"]
     missing = [k for k in _ENTRY if k not in e]
     unknown = [k for k in e if k not in _ENTRY]
+    if "all" in e and "generated_mean" not in e:
+        return [
+            "field `all` is that of an older odmd-bench (now `generated_mean`, the mean over the generated "
+            "sets, not the board's All): record the audit again (odmd-bench leaderboard audit --seed N --record)"
+        ]
     if missing or unknown:
         return [f"fields {', '.join(_ENTRY)} expected"]
     if not all(isinstance(e[k], str) for k in ("method", "name", "command", "predictions_csv_sha256")):
         return ["method, name, command and predictions_csv_sha256 must be text"]
     if e["runnable"] is False:
-        ok = isinstance(e["reason"], str) and e["sets"] == {} and e["all"] is None and e["flagged"] is None
-        return [] if ok else ["an entry not re-run has a reason, and no sets, all or flag"]
+        ok = (
+            isinstance(e["reason"], str)
+            and e["sets"] == {}
+            and e["generated_mean"] is None
+            and e["flagged"] is None
+        )
+        return [] if ok else ["an entry not re-run has a reason, and no sets, generated_mean or flag"]
     if e["runnable"] is not True or e["reason"] is not None or not isinstance(e["flagged"], bool):
         return ["runnable must be true or false; a re-run entry has no reason and a flag"]
     if not isinstance(e["sets"], dict) or sorted(e["sets"]) != sorted(sets):
         return [f"sets must be {', '.join(sets)}"]
-    tests = [*e["sets"].values(), e["all"]]
+    tests = [*e["sets"].values(), e["generated_mean"]]
     for t in tests:
         if not isinstance(t, dict) or not all(k in t for k in _TEST):
             return [f"each test has {', '.join(_TEST)}"]
@@ -199,12 +211,51 @@ def _entry_problems(e: object, sets: list[str]) -> list[str]:
     return []
 
 
+def command_method(command: str) -> str:
+    """The NAME of an ``odmd-bench baseline NAME ...`` command, its options not read.
+
+    Raises:
+        ValueError: the command is not one, in words.
+
+    Example:
+        >>> command_method("odmd-bench baseline my-method --mode x -o p.csv")
+        'my-method'
+    """
+    try:
+        words = shlex.split(command)
+    except ValueError as e:
+        raise ValueError(f"its command cannot be read as words ({e})") from None
+    if words[:2] != ["odmd-bench", "baseline"] or len(words) < 3 or words[2].startswith("-"):
+        shown = " ".join(words[:2]) or "nothing"
+        raise ValueError(f"its command is not `odmd-bench baseline NAME ...` (it starts with {shown!r})")
+    return words[2]
+
+
+def shipped(entry: Entry) -> str | None:
+    """The method an entry runs when it is one shipped in this repository (registered by odmd-bench), else None.
+
+    Read from the installed metadata alone: nothing is imported (plain ``check`` uses it).
+    """
+    from odmd_bench import methods
+
+    if getattr(entry.meta, "plugin", None) is not None:
+        return None
+    try:
+        name = command_method(entry.meta.command)
+    except ValueError:
+        return None
+    return name if name in methods.own_names() else None
+
+
 def audit_problems(audits: Sequence[Mapping[str, Any]], boards: Sequence[Board]) -> list[str]:
     """Where a recorded audit no longer describes the board: an entry gone, or scored otherwise.
 
     Each audited entry must be on the board with the predictions it was audited with
     (their SHA-256) and the same committed means; otherwise the audit is stale: record
-    a new one (``leaderboard audit --seed N --record``) or remove the file.
+    a new one (``leaderboard audit --seed N --record``) or remove the file. An entry of a
+    method shipped in this repository must have been re-run: "not re-run" there means
+    the audit was recorded where it could not run (torch missing, say). Entries of the
+    board that no audit lists are not a problem: they are not audited yet.
     """
     board = next((b for b in boards if (b.benchmark, b.split) == ("odmd-v1", "test")), None)
     rows = {r.entry.method: r for r in board.rows} if board is not None else {}
@@ -219,6 +270,14 @@ def audit_problems(audits: Sequence[Mapping[str, Any]], boards: Sequence[Board])
                 continue
             if row.result.provenance["predictions_sha256"] != e["predictions_csv_sha256"]:
                 problems.append(f"{name}: entry {e['method']}'s predictions changed since the audit; {fix}")
+                continue
+            method = shipped(row.entry)
+            if not e["runnable"] and method is not None:
+                problems.append(
+                    f"{name}: entry {e['method']} runs {method}, a method shipped in this repository, but the "
+                    f"audit says it was not re-run ({e['reason']}): an audit recorded where it could not run "
+                    f"(torch missing, no --original, ...); {fix.replace('record it again', 'record it again where it runs')}"
+                )
                 continue
             for s, t in e["sets"].items():
                 now = rounded(row.result.sets[s]["percent_error"]["mean"]) if s in row.result.sets else None
@@ -242,7 +301,7 @@ def shown(audits: Sequence[Mapping[str, Any]]) -> dict[str, dict[str, Any]]:
     out: dict[str, dict[str, Any]] = {}
     for doc in sorted(audits, key=lambda d: (d["date"], d["seed"])):
         for e in doc["entries"]:
-            t = e["all"] or {}
+            t = e["generated_mean"] or {}
             out[e["method"]] = {
                 "seed": doc["seed"],
                 "file": f"{AUDITS}/{doc['seed']}.json",
@@ -267,6 +326,8 @@ def shown(audits: Sequence[Mapping[str, Any]]) -> dict[str, dict[str, Any]]:
 
 __all__ = [
     "AUDITS",
+    "command_method",
+    "shipped",
     "MAX_AUDIT_BYTES",
     "audit_path",
     "audit_problems",

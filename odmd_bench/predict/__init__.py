@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import inspect
 import io
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Literal
 
 import numpy as np
@@ -99,6 +99,9 @@ class SequenceDepths:
         method_depth: (N,) what the method answered for every sequence, the fallbacks'
             stand-in depths included, as the benchmarks score them (the tables of
             :mod:`odmd_bench.predict.accuracy` do); empty tuple where not given.
+        intervals: ``{"depth_lo", "depth_hi", "depth_std"}`` (N,) error bars, with
+            ``calibration`` given (:mod:`odmd_bench.predict.intervals`); else empty.
+        level: their nominal coverage, or None.
     """
 
     names: tuple[str, ...]
@@ -111,6 +114,8 @@ class SequenceDepths:
     warnings: tuple[str, ...] = ()
     reasons: tuple[str, ...] = ()
     method_depth: np.ndarray | tuple[()] = ()
+    intervals: dict[str, np.ndarray] = field(default_factory=dict)
+    level: float | None = None
 
 
 def method_observations(method: Any) -> int | None:
@@ -127,7 +132,11 @@ def method_observations(method: Any) -> int | None:
 
 
 def predict_sequences(
-    sequences: Sequences, method: str | Any, missing: Missing | None = None, **options: Any
+    sequences: Sequences,
+    method: str | Any,
+    missing: Missing | None = None,
+    calibration: Any = None,
+    **options: Any,
 ) -> SequenceDepths:
     """The depth at the last observation of every sequence, by a registered method.
 
@@ -145,6 +154,8 @@ def predict_sequences(
             each method's own; the default for a method built for a fixed number, which
             ``"omit"`` would leave short). A method that takes ``missing=`` itself
             (robust) gets it and applies it to all the observations.
+        calibration: an :class:`odmd_bench.predict.intervals.IntervalCalibration` of this method
+            (its pooled factor): error bars for every sequence; None: none.
         **options: the method's options (``config=``, ``weights=``, ``mode=``).
 
     Returns:
@@ -179,6 +190,11 @@ def predict_sequences(
     if _accepts(m, "missing"):  # the method's own rule (robust leaves them out of its fit)
         options = {**options, "missing": missing}
         omit = False
+    bars = (
+        {c: np.full(n, np.nan) for c in ("depth_lo", "depth_hi", "depth_std")}
+        if calibration is not None
+        else {}
+    )
     if wanted is not None:
         short = sequences.n_obs < wanted
         if short.any():
@@ -275,6 +291,12 @@ def predict_sequences(
                 f"too little forward motion ({100 * v:.2g} % of the depth; {name} needs {100 * MIN_FORWARD_SHARE:g} %)"
                 for v in share[little].tolist()
             ]
+        if calibration is not None:
+            from odmd_bench.predict.intervals import POOLED, method_spread
+
+            spread = method_spread(m, run_on, run_options) if hasattr(m, "spread") else None
+            for column, values in calibration.intervals(d, spread, key=POOLED).items():
+                bars[column][index] = values
         used[index] = ex.n_obs
         detections[index] = ex.detected.sum(axis=1)
         for key, value in c.items():
@@ -291,6 +313,8 @@ def predict_sequences(
         warnings.append(said)
     answered = depth.copy()
     depth[reasons != ""] = np.nan
+    for values in bars.values():  # no error bars where there is no depth
+        values[reasons != ""] = np.nan
     return SequenceDepths(
         names=sequences.names,
         depth=depth,
@@ -302,6 +326,8 @@ def predict_sequences(
         warnings=tuple(warnings),
         reasons=tuple(str(r) for r in reasons.tolist()),
         method_depth=answered,
+        intervals=bars,
+        level=None if calibration is None else float(calibration.level),
     )
 
 
@@ -560,12 +586,20 @@ def _accepts(method: Any, keyword: str) -> bool:
 def format_depths(result: SequenceDepths) -> str:
     """The output CSV of the depths per sequence.
 
-    Columns ``sequence,depth,observations,detections``, where any truth is given
+    Columns ``sequence,depth,observations,detections``, with error bars
+    ``depth_lo,depth_hi,level,depth_std``, where any truth is given
     ``true_depth,percent_error`` (empty where unknown), and ``reason``: why the depth is
-    empty, empty where it is given.
+    empty, empty where it is given (the error bars are empty there too).
     """
     has_truth = bool(np.isfinite(result.truth).any())
     header = ["sequence", "depth", "observations", "detections"]
+    bars = (
+        [result.intervals[c].tolist() for c in ("depth_lo", "depth_hi", "depth_std")]
+        if result.intervals
+        else []
+    )
+    if bars:
+        header += ["depth_lo", "depth_hi", "level", "depth_std"]
     if has_truth:
         header += ["true_depth", "percent_error"]
     header.append("reason")
@@ -580,6 +614,8 @@ def format_depths(result: SequenceDepths) -> str:
     truth, err = result.truth.tolist(), pct.tolist()
     for i, name in enumerate(result.names):
         row = f"{text_cell(name)},{number_cell(depth[i])},{obs[i]},{det[i]}"
+        if bars:
+            row += f",{number_cell(bars[0][i])},{number_cell(bars[1][i])},{result.level!r},{number_cell(bars[2][i])}"
         if has_truth:
             row += f",{number_cell(truth[i])},{number_cell(err[i])}"
         buf.write(row + f",{text_cell(reasons[i])}\n")

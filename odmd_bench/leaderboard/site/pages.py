@@ -631,6 +631,15 @@ def render_site(
         files[f"downloads/{name}"] = data
         downloads.append(f'<li><a href="downloads/{_e(name)}">{_e(name)}</a>: {_e(what)}</li>')
     downloads.append('<li><a href="reported.html">Results reported in papers</a> (not re-scored)</li>')
+    if site.data.get("uncertainty"):
+        from odmd_bench.leaderboard.uncertainty import site_page
+
+        files["uncertainty.html"] = _page(
+            "Uncertainty: ODMD leaderboard", site_page(site.data["uncertainty"]), "", digest
+        )
+        downloads.append(
+            '<li><a href="uncertainty.html">Uncertainty</a>: error bars ranked by interval score</li>'
+        )
     methods: dict[str, list[tuple[SiteRow, SiteBoard]]] = {}
     for b in site.boards:
         for r in b.rows:
