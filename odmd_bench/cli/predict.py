@@ -128,7 +128,7 @@ def error_summary(truth: Any, depth: Any) -> str:
 )
 @click.option(
     "--interval",
-    type=click.FloatRange(0, 1, min_open=True, max_open=True),
+    type=FiniteFloatRange(0, 1, min_open=True, max_open=True),
     default=None,
     metavar="LEVEL",
     help="Also write error bars (depth_lo, depth_hi, level, depth_std): a central interval of this "
