@@ -8,6 +8,8 @@ Importing the package loads numpy and h5py only; torch is needed by DBox alone.
 (8, 10, 4)
 """
 
+# First: a Ctrl-C while the command line imports ends it quietly (see the module).
+from odmd_bench import _interrupt as _interrupt
 from odmd_bench._version import __version__
 from odmd_bench.data.atomic import atomic_path, atomic_write
 from odmd_bench.data.config import PRESETS, CameraConfig, GeneratorConfig

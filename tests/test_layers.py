@@ -19,6 +19,7 @@ PACKAGE = Path(__file__).resolve().parents[1] / "odmd_bench"
 LAYERS: dict[str, int] = {
     "errors": 0,
     "_version": 0,
+    "_interrupt": 0,  # imported first by the package: a Ctrl-C while the command starts
     "project": 1,
     "extras": 1,
     "documents": 1,

@@ -410,9 +410,10 @@ def test_cli_site_writes_replaces_and_refuses_a_folder_of_other_files(
     first = CliRunner().invoke(cli, args)
     assert first.exit_code == 0, first.output
     assert f"wrote {out}:" in first.output and (out / "methods" / "expansion.html").is_file()
-    (out / "stale.html").write_text("left from before")
+    (out / "notes.html").write_text("the user's")  # kept: the site removes only what it wrote
     again = CliRunner().invoke(cli, args)
-    assert again.exit_code == 0 and not (out / "stale.html").exists()
+    assert again.exit_code == 0 and (out / "notes.html").read_text() == "the user's"
+    assert "kept 1 file(s)" in again.output
     other = tmp_path / "other"
     other.mkdir()
     (other / "notes.txt").write_text("mine")

@@ -15,7 +15,7 @@ import click
 from odmd_bench_baselines.dbox import CONFIGS
 
 from odmd_bench import BENCHMARKS
-from odmd_bench.cli.options import data_dir_option
+from odmd_bench.cli.options import FiniteFloatRange, data_dir_option
 
 
 def config_option(**kwargs: Any) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
@@ -59,7 +59,7 @@ def config_option(**kwargs: Any) -> Callable[[Callable[..., Any]], Callable[...,
 )
 @click.option(
     "--lr",
-    type=click.FloatRange(min=0.0, min_open=True, max=1.0),
+    type=FiniteFloatRange(min=0.0, min_open=True, max=1.0),
     default=1e-3,
     show_default=True,
     help="Peak learning rate (the paper's 1e-3).",
@@ -116,7 +116,7 @@ def config_option(**kwargs: Any) -> Callable[[Callable[..., Any]], Callable[...,
 )
 @click.option(
     "--dist-timeout",
-    type=click.FloatRange(min=0.0, min_open=True),
+    type=FiniteFloatRange(min=0.0, min_open=True),
     default=600.0,
     show_default=True,
     help="Under torchrun: seconds a process waits for the others before the run stops with an error.",

@@ -39,10 +39,12 @@ Files in the output folder:
   with the best val score on that set (section 4.3: "the number of training iterations
   for each test set using the best corresponding validation performance").
 - ``log.jsonl``: one line per validation check.
+- ``claim.json`` and ``.claim.lock``: the run's claim on the folder (:mod:`.claim`).
 """
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import hashlib
 import json
@@ -56,6 +58,7 @@ from typing import Any, TextIO
 
 import numpy as np
 import torch
+from odmd_bench_baselines.dbox.claim import claimed
 from odmd_bench_baselines.dbox.configs import (
     CONFIGS as CONFIGS,  # the training configurations, named here too
 )
@@ -324,7 +327,7 @@ def train(
         problems.append(f"unknown precision {precision!r}; expected one of {', '.join(PRECISIONS)}")
     if data != "auto" and data not in DATA_SOURCES:
         problems.append(f"unknown data source {data!r}; expected auto or one of {', '.join(DATA_SOURCES)}")
-    _, world, _ = launch_ranks()
+    rank, world, _ = launch_ranks()
     if batch_size < world:
         problems.append(f"the batch of {batch_size} cannot be split among {world} processes")
     if cuda_graph and (world > 1 or precision != "fp32" or _resolve_device(device).type != "cuda"):
@@ -338,42 +341,55 @@ def train(
     out = Path(out)
     state_path = out / STATE_FILE
     weights_path = out / f"dbox_{cfg.name}.pt"
-    if state_path.exists() and not resume:
-        raise UsageError(
-            f"{out} already holds a training run ({STATE_FILE}); pass --resume to continue it "
-            "or choose another --out"
-        )
-    if resume and not state_path.exists():
-        raise UsageError(f"nothing to resume: {state_path} does not exist")
-    if not resume and out.is_dir():
-        held = sorted(f.name for f in out.iterdir() if f.name.startswith("dbox_") or f.name == "log.jsonl")
-        if held:
-            raise UsageError(
-                f"{out} already holds weights or a log ({', '.join(held[:5])}{', ...' if len(held) > 5 else ''}), "
-                "which a new run would replace; choose an empty or new --out"
-            )
-    if val_sets is None:
-        val_sets = odmd_bench.load_split("val", cfg.val_benchmark, data_dir)
-    val_names = list(val_sets)
-    if not val_names:
-        raise UsageError("no validation sets")
 
-    owned = not torch.distributed.is_initialized()
-    ctx = setup(device, dist_timeout)
-    try:
-        result = _run(
-            ctx, cfg, steps, out, seed, every, resume, schedule, min_lr_ratio, lr, init, val_sets,
-            batch_size, command, progress, progress_every, on_step, precision, state_path, weights_path,
-            data, cuda_graph,
-        )  # fmt: skip
-        if owned:
-            # Every process leaves together: one that tore its group down while process 0
-            # was still validating and writing could abort at exit (gloo's threads).
-            finish(ctx)
-        return result
-    finally:
-        if owned:
-            cleanup(ctx)
+    def check_folder() -> None:
+        if state_path.exists() and not resume:
+            raise UsageError(
+                f"{out} already holds a training run ({STATE_FILE}); pass --resume to continue it "
+                "or choose another --out"
+            )
+        if resume and not state_path.exists():
+            raise UsageError(f"nothing to resume: {state_path} does not exist")
+        if not resume and out.is_dir():
+            held = sorted(
+                f.name for f in out.iterdir() if f.name.startswith("dbox_") or f.name == "log.jsonl"
+            )
+            if held:
+                raise UsageError(
+                    f"{out} already holds weights or a log ({', '.join(held[:5])}{', ...' if len(held) > 5 else ''}), "
+                    "which a new run would replace; choose an empty or new --out"
+                )
+
+    # Process 0 (which alone writes) holds the folder while it trains (.claim): of two runs
+    # started together into one folder, one trains and the other is refused, naming the first.
+    hold: contextlib.AbstractContextManager[None] = contextlib.nullcontext()
+    if rank == 0:
+        hold = claimed(out, resume=resume, check=check_folder, command=command)
+    else:
+        check_folder()
+    with hold:
+        if val_sets is None:
+            val_sets = odmd_bench.load_split("val", cfg.val_benchmark, data_dir)
+        val_names = list(val_sets)
+        if not val_names:
+            raise UsageError("no validation sets")
+
+        owned = not torch.distributed.is_initialized()
+        ctx = setup(device, dist_timeout)
+        try:
+            result = _run(
+                ctx, cfg, steps, out, seed, every, resume, schedule, min_lr_ratio, lr, init, val_sets,
+                batch_size, command, progress, progress_every, on_step, precision, state_path, weights_path,
+                data, cuda_graph,
+            )  # fmt: skip
+            if owned:
+                # Every process leaves together: one that tore its group down while process 0
+                # was still validating and writing could abort at exit (gloo's threads).
+                finish(ctx)
+            return result
+        finally:
+            if owned:
+                cleanup(ctx)
 
 
 def _run(

@@ -14,6 +14,7 @@ from typing import Any
 import click
 
 from odmd_bench.cli.options import (
+    FiniteFloatRange,
     MethodCommand,
     data_dir_option,
     data_folder_problems,
@@ -81,7 +82,7 @@ def default_output(name: str, benchmark: str, split: str) -> Path:
 )
 @click.option(
     "--interval",
-    type=click.FloatRange(0, 1, min_open=True, max_open=True),
+    type=FiniteFloatRange(0, 1, min_open=True, max_open=True),
     default=None,
     metavar="LEVEL",
     help="Also write error bars: a central interval of this nominal coverage (e.g. 0.9) and a "

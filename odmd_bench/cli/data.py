@@ -7,7 +7,7 @@ from pathlib import Path
 
 import click
 
-from odmd_bench.cli.options import data_dir_option, data_dir_or_out_option
+from odmd_bench.cli.options import FINITE_FLOAT, data_dir_option, data_dir_or_out_option
 from odmd_bench.data.registry import BENCHMARKS, SPLITS, resolve_data_dir
 from odmd_bench.errors import UsageError
 
@@ -67,7 +67,7 @@ def generate(benchmark: str, split: str | None, data_dir: Path | None, force: bo
 )
 @click.option(
     "--image-size",
-    type=(float, float),
+    type=(FINITE_FLOAT, FINITE_FLOAT),
     default=None,
     metavar="WIDTH HEIGHT",
     help="kitti-tracking with KITTI's calib/NNNN.txt, which gives no image size: the images' size in pixels.",

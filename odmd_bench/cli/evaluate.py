@@ -7,7 +7,13 @@ from typing import Any
 
 import click
 
-from odmd_bench.cli.options import data_dir_option, data_folder_problems, same_file
+from odmd_bench.cli.options import (
+    FINITE_FLOAT,
+    FiniteFloatRange,
+    data_dir_option,
+    data_folder_problems,
+    same_file,
+)
 from odmd_bench.errors import UsageError
 from odmd_bench.evaluation.compare import MAX_RESAMPLES
 from odmd_bench.evaluation.report import FORMATS
@@ -98,7 +104,7 @@ def _emit(*reports: tuple[str, Path | None, str]) -> None:
 @click.option("--sets", default=None, help=_SETS_HELP)
 @click.option(
     "--max-all",
-    type=float,
+    type=FINITE_FLOAT,
     default=None,
     metavar="X",
     help="Exit with status 1 when All (the mean of the sets' mean percent errors) is above X.",
@@ -186,7 +192,7 @@ def evaluate_command(
 )
 @click.option(
     "--confidence",
-    type=click.FloatRange(0, 1, min_open=True, max_open=True),
+    type=FiniteFloatRange(0, 1, min_open=True, max_open=True),
     default=0.95,
     show_default=True,
     help="Level of the interval; the test's threshold is 1 - confidence.",

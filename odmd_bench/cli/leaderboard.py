@@ -386,9 +386,12 @@ def site_command(
         source_url=source_url,
         croissant=not no_croissant,
     )
-    write_site(files, output)
+    kept = write_site(files, output)
     for line in said:
         click.echo(line)
+    if kept:
+        shown = ", ".join(kept[:10]) + (f", ... ({len(kept) - 10} more)" if len(kept) > 10 else "")
+        click.echo(f"kept {len(kept)} file(s) in {output} that odmd-bench did not write: {shown}")
     pages = sum(1 for name in files if name.endswith(".html"))
     click.echo(f"wrote {output}: {len(files)} files, {pages} pages (open {output / 'index.html'})")
 

@@ -10,11 +10,20 @@ usage errors exit 2; anything else is a bug and exits 1. When the command was gi
 (128 + SIGPIPE, as a shell reports a command killed by SIGPIPE), whatever the command
 and however large its output: standard output writes every byte or fails
 (:class:`_WholeWrites`), since Python's own buffered stdout returns from a write the pipe
-took only part of without an error, and the rest would be dropped with status 0.
+took only part of without an error, and the rest would be dropped with status 0. A
+standard output closed before the command starts (``odmd-bench ... >&-``) is the same
+case: the command does its work, and its first write to standard output ends it with
+status 141 (a command that prints nothing ends with 0); the closed descriptors 0, 1 and
+2 are pointed at ``/dev/null`` first, so that no file the command opens takes their
+place. A Ctrl-C ends the command with status 130 and one line, never a traceback, at
+any moment: while the modules import (:mod:`odmd_bench._interrupt`), while it runs
+(no partial file is left), and after (an interrupt is never swallowed into 0).
 """
 
 from __future__ import annotations
 
+import contextlib
+import errno
 import io
 import json
 import os
@@ -213,20 +222,80 @@ def _register() -> None:
 _register()
 
 
+class _ClosedOutput(io.RawIOBase):
+    """Standard output when it was closed before the command started: every write fails as a broken pipe."""
+
+    def writable(self) -> bool:
+        return True
+
+    def write(self, b: Any) -> int:
+        raise BrokenPipeError(errno.EBADF, "standard output is closed")
+
+
+def _open_closed_descriptors() -> bool:
+    """Point each closed standard descriptor (0, 1, 2) at /dev/null; whether standard output was closed.
+
+    In order, so that each ``os.open`` takes the lowest free descriptor, the one closed.
+    Standard output closed becomes :class:`_ClosedOutput`; standard error closed, a
+    sink; standard input stays ``None`` (``-`` says it is closed).
+    """
+    closed_out = sys.stdout is None
+    for fd in (0, 1, 2):
+        try:
+            os.fstat(fd)
+        except OSError:
+            with contextlib.suppress(OSError):
+                os.open(os.devnull, os.O_RDWR)
+    if closed_out:
+        sys.stdout = io.TextIOWrapper(_ClosedOutput(), encoding="utf-8", write_through=True)
+    if sys.stderr is None:
+        sys.stderr = open(os.devnull, "w", encoding="utf-8")  # noqa: SIM115 (for the process's life)
+    return closed_out
+
+
+#: Whether a SIGINT came while :func:`main` ran (see :func:`_interrupt`).
+_interrupted = False
+
+
+def _interrupt(signum: int, frame: Any) -> None:
+    """SIGINT while the command runs: remembered, then Python's KeyboardInterrupt."""
+    global _interrupted
+    _interrupted = True
+    raise KeyboardInterrupt
+
+
 def main() -> None:
     """Run the command line (the ``odmd-bench`` script and ``python -m odmd_bench``)."""
+    import signal
+
+    from odmd_bench._interrupt import EXIT_INTERRUPTED, end_now
+
+    with contextlib.suppress(ValueError):  # not the main thread: Python's handler stays
+        signal.signal(signal.SIGINT, _interrupt)
     code: int | str | None = 0
     try:
-        whole_stdout()
+        if not _open_closed_descriptors():
+            whole_stdout()
         cli.main(prog_name="odmd-bench")
     except SystemExit as e:
         code = e.code
     except BrokenPipeError:
         _silence_stdout()
         code = EXIT_BROKEN_PIPE
+    except KeyboardInterrupt:  # outside a command (click's own handling turns it into 1)
+        code = EXIT_INTERRUPTED
     try:
         sys.stdout.flush()
     except BrokenPipeError:  # the reader left before the last line was flushed
         _silence_stdout()
         code = code or EXIT_BROKEN_PIPE
+    except KeyboardInterrupt:
+        pass
+    with contextlib.suppress(ValueError):  # from here an interrupt ends the process at once
+        signal.signal(signal.SIGINT, end_now)
+    if _interrupted:  # never swallowed: whatever caught the KeyboardInterrupt
+        if code != EXIT_INTERRUPTED:
+            with contextlib.suppress(OSError, ValueError, AttributeError):
+                sys.stderr.write("interrupted\n")
+        code = EXIT_INTERRUPTED
     sys.exit(code)

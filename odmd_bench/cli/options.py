@@ -6,6 +6,7 @@ command takes ``--data-dir`` as every other command does.
 
 from __future__ import annotations
 
+import math
 import os
 from collections.abc import Mapping
 from pathlib import Path
@@ -247,7 +248,45 @@ def given_options(method: Any, **values: Any) -> dict[str, Any]:
     return dict(method.values(options))
 
 
+def _refuse_nonfinite(
+    kind: click.ParamType, value: Any, param: click.Parameter | None, ctx: click.Context | None
+) -> None:
+    """Fail (a usage error, exit 2) where ``value`` reads as NaN or an infinity."""
+    if isinstance(value, (str, int, float)) and not isinstance(value, bool):
+        try:
+            number = float(value)
+        except ValueError:
+            return  # not a number at all: click says so
+        if not math.isfinite(number):
+            kind.fail(f"{value} is not a finite number (NaN and infinities are refused)", param, ctx)
+
+
+class FiniteFloat(click.types.FloatParamType):
+    """A number option's type: any finite float (click's ``float`` takes ``nan`` and ``inf``)."""
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
+        """The float, or a usage error for NaN and infinities."""
+        _refuse_nonfinite(self, value, param, ctx)
+        return super().convert(value, param, ctx)
+
+
+class FiniteFloatRange(click.FloatRange):
+    """:class:`click.FloatRange` refusing NaN (which every bound lets through: each comparison with it is false)."""
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
+        """The float, or a usage error for NaN and infinities."""
+        _refuse_nonfinite(self, value, param, ctx)
+        return super().convert(value, param, ctx)
+
+
+#: Every float option of every command takes this type or :class:`FiniteFloatRange`
+#: (``tests/test_battery.py`` tries NaN and infinities on each).
+FINITE_FLOAT = FiniteFloat()
+
 __all__ = [
+    "FINITE_FLOAT",
+    "FiniteFloat",
+    "FiniteFloatRange",
     "MethodCommand",
     "data_dir_option",
     "data_dir_or_out_option",

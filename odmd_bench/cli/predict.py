@@ -11,7 +11,14 @@ from typing import TYPE_CHECKING, Any
 
 import click
 
-from odmd_bench.cli.options import MethodCommand, data_dir_option, given_options, same_file
+from odmd_bench.cli.options import (
+    FINITE_FLOAT,
+    FiniteFloatRange,
+    MethodCommand,
+    data_dir_option,
+    given_options,
+    same_file,
+)
 from odmd_bench.errors import UsageError
 
 if TYPE_CHECKING:
@@ -68,7 +75,7 @@ def error_summary(truth: Any, depth: Any) -> str:
 @click.option(
     "--image-size",
     nargs=2,
-    type=click.FloatRange(min=0, min_open=True),
+    type=FiniteFloatRange(min=0, min_open=True),
     required=True,
     metavar="W H",
     help="Width and height in pixels of the images the boxes are in.",
@@ -76,7 +83,7 @@ def error_summary(truth: Any, depth: Any) -> str:
 @click.option(
     "--intrinsics",
     nargs=4,
-    type=float,
+    type=FINITE_FLOAT,
     default=None,
     metavar="FX FY CX CY",
     help="Camera intrinsics in pixels (same pixel frame as the boxes), for the calibrated methods "
@@ -121,7 +128,7 @@ def error_summary(truth: Any, depth: Any) -> str:
 )
 @click.option(
     "--interval",
-    type=click.FloatRange(0, 1, min_open=True, max_open=True),
+    type=FiniteFloatRange(0, 1, min_open=True, max_open=True),
     default=None,
     metavar="LEVEL",
     help="Also write error bars (depth_lo, depth_hi, level, depth_std): a central interval of this "

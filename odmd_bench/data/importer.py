@@ -32,7 +32,7 @@ from odmd_bench.data.manifests import known_originals
 from odmd_bench.data.registry import Benchmark, get_benchmark, set_file
 from odmd_bench.data.store import pin_problem, read_checked
 from odmd_bench.errors import DataError, ImportRefused, StorageError, show_value
-from odmd_bench.inputs.source import MAX_ORIGINAL_BYTES, cap_advice, input_limit
+from odmd_bench.inputs.source import MAX_ORIGINAL_BYTES, cap_advice, input_limit, read_at_most
 
 log = logging.getLogger("odmd_bench")
 
@@ -240,7 +240,7 @@ def read_original(path: str | os.PathLike[str], *, allow_unknown: bool = False) 
     limit = input_limit(MAX_ORIGINAL_BYTES)
     try:
         with p.open("rb") as fh:  # at most the cap plus one byte: /dev/zero ends too
-            data = fh.read(limit + 1)
+            data = read_at_most(fh.read, limit, os.fstat(fh.fileno()).st_size) or b""
     except OSError as e:
         raise ImportRefused(f"{p}: cannot read ({e.strerror})") from None
     if len(data) > limit:

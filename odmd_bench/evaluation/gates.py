@@ -10,7 +10,7 @@ import math
 from collections.abc import Sequence
 
 from odmd_bench.errors import UsageError
-from odmd_bench.evaluation.compare import A_BETTER, Comparison, PairedDifference
+from odmd_bench.evaluation.compare import A_BETTER, B_BETTER, Comparison, PairedDifference
 from odmd_bench.evaluation.report import signed
 from odmd_bench.evaluation.result import EvaluationResult
 
@@ -46,7 +46,7 @@ def _because(name: str, d: PairedDifference, confidence: float) -> str:
     # A - B, as the comparison's table prints it (A: the baseline, B: the candidate).
     return (
         f"{name}: A - B (baseline - candidate) = {signed(d.difference)} points of mean percent error, "
-        f"{confidence:.0%} interval [{signed(d.ci_low)}, {signed(d.ci_high)}], p = {d.p_value:.4f} "
+        f"{confidence * 100:.6g}% interval [{signed(d.ci_low)}, {signed(d.ci_high)}], p = {d.p_value:.4f} "
         "(negative: the baseline's error is lower)"
     )
 
@@ -70,28 +70,46 @@ def fail_if_worse(c: Comparison, sets: Sequence[str] = ()) -> tuple[bool, list[s
 
     Worse means the paired comparison's verdict is "A better" (the interval of
     ``A - B`` below 0 and the sign-flip test's ``p < 1 - confidence``), on All or on
-    any of ``sets``.
+    any of ``sets``. Each line says what the verdict is: worse (fail), significantly
+    better, or not significantly worse (not distinguishable).
 
     Args:
         c: the comparison, A = baseline, B = candidate.
-        sets: sets checked besides All.
+        sets: sets checked besides All. Where only one set was compared, All is that set
+            alone: it is checked once, on one line.
 
     Returns:
         ``(passed, lines)``: one line per target checked, failures first.
+
+    Examples:
+        >>> import numpy as np
+        >>> from odmd_bench.evaluation.compare import compare_errors
+        >>> a = {"camera": np.linspace(1.0, 2.0, 40)}
+        >>> passed, lines = fail_if_worse(compare_errors(a, {"camera": a["camera"] + 1}), ["camera"])
+        >>> passed, len(lines), lines[0][:62]
+        (False, 1, 'fail: the candidate is significantly worse on camera (= All, t')
+        >>> fail_if_worse(compare_errors(a, {"camera": a["camera"] - 1}))[1][0][:49]
+        'ok: the candidate is significantly better on All:'
     """
     unknown = [s for s in sets if s not in c.sets]
     if unknown:
         raise UsageError(
             f"--fail-if-worse: set {unknown[0]!r} was not compared; compared: {', '.join(c.sets)}"
         )
-    targets = [("All", c.all), *((s, c.sets[s]) for s in sets)]
+    if len(c.sets) == 1 and list(sets) == list(c.sets):
+        (only,) = c.sets
+        targets = [(f"{only} (= All, the only set compared)", c.sets[only])]
+    else:
+        targets = [("All", c.all), *((s, c.sets[s]) for s in dict.fromkeys(sets))]
     worse = [(n, d) for n, d in targets if d.verdict == A_BETTER]
     lines = [
         f"fail: the candidate is significantly worse on {_because(n, d, c.confidence)}" for n, d in worse
     ]
-    lines += [
-        f"ok: not significantly worse on {_because(n, d, c.confidence)}{_unless(d, c.confidence)}"
-        for n, d in targets
-        if d.verdict != A_BETTER
-    ]
+    for n, d in targets:
+        if d.verdict == B_BETTER:
+            lines.append(f"ok: the candidate is significantly better on {_because(n, d, c.confidence)}")
+        elif d.verdict != A_BETTER:
+            lines.append(
+                f"ok: not significantly worse on {_because(n, d, c.confidence)}{_unless(d, c.confidence)}"
+            )
     return not worse, lines

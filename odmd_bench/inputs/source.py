@@ -5,7 +5,10 @@ A predictions file is refused when it (or its gzip-decompressed content) is larg
 needs (``odmd-v1`` test, 12,000 rows with a ``benchmark`` column, is 0.52 MB), so no real
 file comes near it, while ``/dev/zero``, a runaway file or a gzip bomb is refused after
 reading at most the cap plus one byte. gzip is recognised by its magic bytes, whatever
-the name, so ``.csv.gz`` files and compressed stdin are read alike.
+the name, so ``.csv.gz`` files and compressed stdin are read alike. A cap bounds what is
+read, never what is allocated: a read asks for at most a chunk (:data:`CHUNK_BYTES`) or
+the regular file's size, so any legal cap works on a small file (Python's ``read(n)``
+allocates ``n`` bytes before it reads one).
 
 The sequences reader (:func:`odmd_bench.predict.sequences.read_sequences`) reads its files
 here too, under its own title and cap (:data:`MAX_SEQUENCES_BYTES`), and the importer
@@ -23,6 +26,7 @@ import os
 import stat
 import sys
 import zlib
+from collections.abc import Callable
 from pathlib import Path
 from typing import BinaryIO, TypeAlias
 
@@ -38,6 +42,8 @@ MAX_SEQUENCES_BYTES = 256 * 2**20
 MAX_ORIGINAL_BYTES = 64 * 2**20
 #: The environment variable that sets the caps of the sequences and original files, in MiB.
 LIMIT_ENV = "ODMD_BENCH_MAX_INPUT_MIB"
+#: The most one read asks for beyond a regular file's size (bytes).
+CHUNK_BYTES = 2**20
 
 
 def input_limit(default: int) -> int:
@@ -78,13 +84,47 @@ def _too_large(what: str, limit: int, advice: str = _PREDICTIONS_ADVICE) -> str:
     return f"{what} is larger than {limit / 2**20:g} MiB, {advice}"
 
 
+def read_at_most(read: Callable[[int], object], limit: int | None, size_hint: int = 0) -> bytes | None:
+    """What ``read`` gives, up to ``limit + 1`` bytes (all of it where ``limit`` is None), chunk by chunk.
+
+    Args:
+        read: a binary file's ``read``.
+        limit: the cap in bytes; one byte more is read, so that the caller can tell a file
+            over the cap.
+        size_hint: the size expected (a regular file's ``st_size``): the first read asks
+            for that plus one byte, or :data:`CHUNK_BYTES` if larger, so that a regular
+            file is read in one go; no read asks for more than is left below the cap.
+
+    Returns:
+        The bytes read, or None where ``read`` gave something other than bytes (a text
+        stream's ``str``), for the caller to refuse.
+    """
+    if limit is None:
+        whole = read(-1)
+        return whole if isinstance(whole, bytes) else None
+    parts: list[bytes] = []
+    got = 0
+    ask = max(CHUNK_BYTES, size_hint + 1)
+    while got <= limit:
+        part = read(min(ask, limit + 1 - got))
+        if not isinstance(part, bytes):
+            return None
+        if not part:
+            break
+        parts.append(part)
+        got += len(part)
+        ask = CHUNK_BYTES
+    return parts[0] if len(parts) == 1 else b"".join(parts)
+
+
 def _read_path(path: Path, title: str, kind: str, limit: int | None, advice: str) -> bytes:
     try:
         with path.open("rb") as fh:
             info = os.fstat(fh.fileno())
             if limit is not None and stat.S_ISREG(info.st_mode) and info.st_size > limit:
                 raise ValidationError(title, [_too_large("the file", limit, advice)])
-            return fh.read(-1 if limit is None else limit + 1)
+            hint = info.st_size if stat.S_ISREG(info.st_mode) else 0
+            return read_at_most(fh.read, limit, hint) or b""  # bytes: the file is opened "rb"
     except FileNotFoundError:
         raise ValidationError(title, [f"no such file: {path}"]) from None
     except IsADirectoryError:
@@ -95,10 +135,10 @@ def _read_path(path: Path, title: str, kind: str, limit: int | None, advice: str
 
 def _read_stream(stream: BinaryIO, name: str, title: str, kind: str, limit: int | None) -> bytes:
     try:
-        data = stream.read(-1 if limit is None else limit + 1)
+        data = read_at_most(stream.read, limit)
     except OSError as e:
         raise ValidationError(title, [f"the input cannot be read ({e.strerror or e})"]) from None
-    if not isinstance(data, bytes):
+    if data is None:
         raise UsageError(f"{name}: {kind} must be read from a binary file (open it with 'rb')")
     return data
 
@@ -106,7 +146,7 @@ def _read_stream(stream: BinaryIO, name: str, title: str, kind: str, limit: int 
 def _gunzip(data: bytes, title: str, limit: int | None, advice: str) -> bytes:
     try:
         with gzip.GzipFile(fileobj=io.BytesIO(data)) as fh:
-            plain = fh.read(-1 if limit is None else limit + 1)
+            plain = read_at_most(fh.read, limit) or b""  # bytes: GzipFile reads bytes
     except (OSError, EOFError, zlib.error) as e:
         raise ValidationError(title, [f"not a readable gzip file ({e})"]) from None
     if limit is not None and len(plain) > limit:

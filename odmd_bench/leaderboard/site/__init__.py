@@ -24,6 +24,7 @@ Two builds of one board give byte-identical files.
 from __future__ import annotations
 
 import importlib.util
+import json
 import os
 import shutil
 import tempfile
@@ -37,6 +38,7 @@ __all__ = [
     "EXTRA_COLUMNS",
     "FACETS",
     "GENERATOR_MARK",
+    "MANIFEST",
     "REFERENCE_METHOD",
     "ExtraColumn",
     "SiteData",
@@ -104,23 +106,84 @@ def _croissant_downloads(
     return out
 
 
-def write_site(files: dict[str, bytes], out: str | os.PathLike[str]) -> None:
-    """Write the site to the folder ``out``, whole or not at all.
+#: The list of the files a build wrote, beside them (a later build removes only these).
+MANIFEST = ".odmd-bench-site.json"
 
-    The files are written to a new folder beside ``out``, which then takes its place; a
-    folder ``out`` that exists must be empty or hold a site this package wrote.
+
+def _tree(folder: Path) -> tuple[list[str], list[str]]:
+    """(files, folders) under ``folder``, relative POSIX paths; a link counts as a file."""
+    files, folders = [], []
+    for path in sorted(folder.rglob("*")):
+        rel = path.relative_to(folder).as_posix()
+        if path.is_dir() and not path.is_symlink():
+            folders.append(rel)
+        else:
+            files.append(rel)
+    return files, folders
+
+
+def _written_before(out: Path, new: dict[str, bytes]) -> set[str] | None:
+    """The files of ``out`` an earlier build wrote; None where ``out`` holds no site.
+
+    Read from the manifest; a site built before the manifest (its index.html says it
+    was generated here) is taken to be every file under the names the site writes at
+    its top level (index.html, methods/, ...), the rest being the user's.
+    """
+    manifest = out / MANIFEST
+    if manifest.is_file():
+        try:
+            listed = json.loads(manifest.read_text(encoding="utf-8"))["files"]
+            if isinstance(listed, list) and all(isinstance(f, str) for f in listed):
+                return set(listed)
+        except (OSError, ValueError, KeyError, TypeError):
+            pass
+        raise UsageError(
+            f"{manifest} is not a site manifest written by odmd-bench; remove it or give another folder"
+        )
+    index = out / "index.html"
+    if not index.is_file() or GENERATOR_MARK not in index.read_bytes()[:4096]:
+        return None
+    tops = {rel.split("/")[0] for rel in new}
+    return {rel for rel in _tree(out)[0] if rel.split("/")[0] in tops}
+
+
+def write_site(files: dict[str, bytes], out: str | os.PathLike[str]) -> list[str]:
+    """Write the site to the folder ``out``, whole or not at all; keep what it did not write.
+
+    The files are written to a new folder beside ``out``, with the list of them
+    (:data:`MANIFEST`), which then takes ``out``'s place. A folder ``out`` that exists must
+    be empty or hold a site this package wrote: the files of the earlier build (its
+    manifest) are replaced or removed, every other file (a ``CNAME``, notes) is kept, as
+    it was (hard-linked into the new folder, or copied where a link cannot be made).
+
+    Returns:
+        The files kept that a build did not write (relative paths).
 
     Raises:
-        UsageError: When ``out`` is a file, or a folder holding something else.
+        UsageError: When ``out`` is a file, a folder holding something else, or a folder
+            holding a file of the user's where the site writes one (named; nothing is
+            written).
     """
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise UsageError(f"{out} is a file; give a folder for the site")
+    kept: list[str] = []
+    folders: list[str] = []
     if out.is_dir() and any(out.iterdir()):
-        index = out / "index.html"
-        if not index.is_file() or GENERATOR_MARK not in index.read_bytes()[:4096]:
+        ours = _written_before(out, files)
+        if ours is None:
             raise UsageError(
                 f"{out} is not empty and holds no site written by odmd-bench; give a new or empty folder"
+            )
+        present, folders = _tree(out)
+        folders = [rel for rel in folders if not any((out / rel).iterdir())]  # the user's empty ones
+        kept = [rel for rel in present if rel not in ours and rel != MANIFEST]
+        clash = [rel for rel in kept + folders if _collides(rel, files)]
+        if clash:
+            raise UsageError(
+                f"{out} holds files that odmd-bench did not write where the site writes its own; "
+                "move them, or give another folder",
+                sorted(clash),
             )
     out.parent.mkdir(parents=True, exist_ok=True)
     staged = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
@@ -129,6 +192,12 @@ def write_site(files: dict[str, bytes], out: str | os.PathLike[str]) -> None:
             path = staged / rel
             path.parent.mkdir(parents=True, exist_ok=True)
             path.write_bytes(data)
+        manifest = {"generator": "odmd-bench leaderboard site", "files": sorted(files)}
+        (staged / MANIFEST).write_text(json.dumps(manifest, indent=1) + "\n", encoding="utf-8")
+        for rel in folders:
+            (staged / rel).mkdir(parents=True, exist_ok=True)
+        for rel in kept:
+            _keep(out / rel, staged / rel)
         staged.chmod(0o755)
         old = None
         if out.exists():
@@ -140,3 +209,23 @@ def write_site(files: dict[str, bytes], out: str | os.PathLike[str]) -> None:
     except BaseException:
         shutil.rmtree(staged, ignore_errors=True)
         raise
+    return kept
+
+
+def _collides(rel: str, files: dict[str, bytes]) -> bool:
+    """Whether the user's ``rel`` stands where the site writes: the same path, above or below one."""
+    parts = rel.split("/")
+    above = ("/".join(parts[:i]) for i in range(1, len(parts)))
+    return rel in files or any(a in files for a in above) or any(f.startswith(rel + "/") for f in files)
+
+
+def _keep(source: Path, target: Path) -> None:
+    """``source`` at ``target`` as it is: a link re-made, a file hard-linked (or copied)."""
+    target.parent.mkdir(parents=True, exist_ok=True)
+    if source.is_symlink():
+        os.symlink(os.readlink(source), target)
+        return
+    try:
+        os.link(source, target)
+    except OSError:
+        shutil.copy2(source, target)
