@@ -16,6 +16,7 @@ from typing import Any
 import pytest
 
 ORIGINAL = Path(__file__).resolve().parents[2] / "shared" / "odmd-original"
+KITTI = Path(__file__).resolve().parents[2] / "shared" / "kitti-tracking"
 
 
 def original_dir() -> Path:
@@ -26,6 +27,18 @@ def original_dir() -> Path:
         message = f"the original ODMD release is not at {path} (set ODMD_ORIGINAL)"
         if os.environ.get("CI"):
             pytest.fail(message + "; CI must have it", pytrace=False)
+        pytest.skip(message)
+    return path
+
+
+def kitti_dir() -> Path:
+    """The raw KITTI tracking files, or skip (outside CI) / fail (in CI)."""
+    override = os.environ.get("ODMD_KITTI_TRACKING")
+    path = Path(override) if override else KITTI
+    if not (path / "label_02").is_dir():
+        message = f"the KITTI tracking files are not at {path} (set ODMD_KITTI_TRACKING)"
+        if os.environ.get("CI"):
+            pytest.fail(message + "; CI must have them", pytrace=False)
         pytest.skip(message)
     return path
 

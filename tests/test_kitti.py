@@ -13,34 +13,21 @@ from __future__ import annotations
 import gzip
 import io
 import json
-import os
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
 from click.testing import CliRunner
+from conftest import kitti_dir
 
 from odmd_bench.cli.main import cli
 from odmd_bench.data.io import read_set
 from odmd_bench.data.manifests import read_manifest, splits_dir
 from odmd_bench.data.store import load_split
 
-KITTI = Path(__file__).resolve().parents[2] / "shared" / "kitti-tracking"
 ROOT = Path(__file__).resolve().parents[1]
 SETS = ("vehicle", "person")
-
-
-def kitti_dir() -> Path:
-    """The raw KITTI tracking files, or skip (outside CI) / fail (in CI)."""
-    override = os.environ.get("ODMD_KITTI_TRACKING")
-    path = Path(override) if override else KITTI
-    if not (path / "label_02").is_dir():
-        message = f"the KITTI tracking files are not at {path} (set ODMD_KITTI_TRACKING)"
-        if os.environ.get("CI"):
-            pytest.fail(message + "; CI must have them", pytrace=False)
-        pytest.skip(message)
-    return path
 
 
 @pytest.fixture(scope="module")

@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from conftest import kitti_dir
 
 from odmd_bench.cli.main import cli
 from odmd_bench.errors import ImportRefused
@@ -165,7 +166,6 @@ def test_a_kitti_calibration_without_p2_is_refused(tmp_path: Path) -> None:
 
 
 def _copy_kitti(tmp_path: Path) -> Path:
-    from tests.test_kitti import kitti_dir
 
     src = kitti_dir()
     dst = tmp_path / "kitti"
