@@ -32,7 +32,6 @@ from __future__ import annotations
 import datetime as _dt
 import math
 import os
-import shlex
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -71,8 +70,7 @@ CONFIDENCE = 0.95
 CHUNK = 1_000
 #: How an entry's command names the user's copy of the original release.
 RELEASE_PLACEHOLDER = "ODMD/"
-#: The ``odmd-bench baseline`` options that take a value; those passed on to the method.
-_BASELINE_VALUES = ("--benchmark", "--split", "-o", "--output", "--data-dir")
+#: The method options of a command the audit re-runs where an entry records no ``options``.
 _METHOD_OPTIONS = ("--weights", "--weights-sha256", "--config", "--selection", "--mode")
 #: Spawn keys of the audit's random streams (fresh sets: (repeat, set); statistics: these).
 _PERMUTATION_KEY = 1_000_001
@@ -190,47 +188,19 @@ def parse_command(command: str, benchmark: str = BENCHMARK) -> tuple[str, dict[s
         >>> parse_command("odmd-bench baseline dbox --config p-z --split test -o p.csv")
         ('dbox', {'config': 'p-z'})
     """
-    try:
-        words = shlex.split(command)
-    except ValueError as e:
-        raise ValueError(f"its command cannot be read as words ({e})") from None
-    for i, w in enumerate(words):
-        if w.startswith("("):
-            words = words[:i]
-            break
-    if words[:2] != ["odmd-bench", "baseline"]:
-        shown = " ".join(words[:2]) or "nothing"
-        raise ValueError(f"its command is not `odmd-bench baseline NAME ...` (it starts with {shown!r})")
-    names: list[str] = []
-    given: dict[str, str] = {}
-    rest = words[2:]
-    i = 0
-    while i < len(rest):
-        word = rest[i]
-        if not word.startswith("-") or word == "-":
-            names.append(word)
-            i += 1
-            continue
-        opt, eq, value = word.partition("=")
-        if opt not in (*_BASELINE_VALUES, *_METHOD_OPTIONS):
-            raise ValueError(f"its command has an option the audit does not know: {opt}")
-        if not eq:
-            if i + 1 >= len(rest):
-                raise ValueError(f"its command gives {opt} no value")
-            value = rest[i + 1]
-            i += 1
-        i += 1
-        if opt in given:
-            raise ValueError(f"its command gives {opt} twice")
-        given[opt] = value
-    if len(names) != 1:
-        raise ValueError(f"its command names {len(names)} methods; `odmd-bench baseline` takes one")
-    if given.get("--benchmark", "odmd-v1") != benchmark:
-        raise ValueError(f"its command runs on benchmark {given['--benchmark']}, not {benchmark}")
-    if given.get("--split", "test") != SPLIT:
-        raise ValueError(f"its command runs on split {given['--split']}, not {SPLIT}")
-    options = {o[2:].replace("-", "_"): v for o, v in given.items() if o in _METHOD_OPTIONS}
-    return names[0], options
+    from odmd_bench.methods import parse_command as read_command
+
+    name, options, own = read_command(command)  # (its words read as every recorded command is)
+    unknown = [o for o in options if "--" + o.replace("_", "-") not in _METHOD_OPTIONS]
+    if unknown:
+        raise ValueError(
+            f"its command has an option the audit does not know: --{unknown[0].replace('_', '-')}"
+        )
+    if own.get("--benchmark", "odmd-v1") != benchmark:
+        raise ValueError(f"its command runs on benchmark {own['--benchmark']}, not {benchmark}")
+    if own.get("--split", "test") != SPLIT:
+        raise ValueError(f"its command runs on split {own['--split']}, not {SPLIT}")
+    return name, options
 
 
 def resolve_target(entry: Entry, repo: Path, original: str | os.PathLike[str] | None = None) -> Target:
