@@ -150,3 +150,26 @@ def add_entry(root: Path, data_dir: Path, preds: Path, method: str, **over: Any)
     }
     kwargs.update(over)
     return lb.add_entry(root, preds, **kwargs)
+
+
+def two_entry_board(tmp: Path, data_dir: Path, **expansion_fields: Any) -> Path:
+    """``tmp/leaderboard`` with the odmd-v1 test entries of Box_LS and expansion (:func:`add_entry`).
+
+    ``expansion_fields`` go to the expansion entry's :func:`add_entry`.
+    """
+    from odmd_bench_baselines import box_ls, expansion
+
+    from odmd_bench import leaderboard as lb
+    from odmd_bench import load_split
+    from odmd_bench.evaluation.predictions import write_predictions
+
+    root = tmp / "leaderboard"
+    (root / lb.ENTRIES).mkdir(parents=True)
+    sets = load_split("test", "odmd-v1", data_dir)
+    for method, module in (("box-ls", box_ls), ("expansion", expansion)):
+        preds = tmp / f"{method}.csv"
+        write_predictions(
+            preds, "test", {s: module.predict(ex) for s, ex in sets.items()}, benchmark="odmd-v1"
+        )
+        add_entry(root, data_dir, preds, method, **(expansion_fields if method == "expansion" else {}))
+    return root

@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 import pytest
 import yaml
-from conftest import add_entry
+from conftest import two_entry_board
 
 from odmd_bench import DepthRangeError
 from odmd_bench import leaderboard as lb
@@ -52,37 +52,23 @@ FORBIDDEN_ATTRS = {"data-pwn", "onerror"}
 @pytest.fixture(scope="module")
 def hostile_site(v1_data_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A built board whose second entry, and a reported result, carry the payload in every text field."""
-    from odmd_bench_baselines import box_ls, expansion
-
-    from odmd_bench import load_split
-    from odmd_bench.evaluation.predictions import write_predictions
-
+    fields = {
+        "name": PAYLOAD[:80],
+        "description": PAYLOAD,
+        "paper": LINK_PAYLOAD,
+        "code": LINK_PAYLOAD,
+        "training_data": PAYLOAD,
+        "command": PAYLOAD,
+        "notes": PAYLOAD,
+    }
     tmp = tmp_path_factory.mktemp("hostile")
-    root = tmp / "leaderboard"
-    (root / lb.ENTRIES).mkdir(parents=True)
-    sets = load_split("test", "odmd-v1", v1_data_dir)
-    for method, module in (("box-ls", box_ls), ("expansion", expansion)):
-        preds = tmp / f"{method}.csv"
-        write_predictions(
-            preds, "test", {s: module.predict(ex) for s, ex in sets.items()}, benchmark="odmd-v1"
-        )
-        hostile = method == "expansion"
-        fields = {
-            "name": PAYLOAD[:80],
-            "description": PAYLOAD,
-            "paper": LINK_PAYLOAD,
-            "code": LINK_PAYLOAD,
-            "training_data": PAYLOAD,
-            "command": PAYLOAD,
-            "notes": PAYLOAD,
-        }
-        add_entry(root, v1_data_dir, preds, method, **(fields if hostile else {}))
+    root = two_entry_board(tmp, v1_data_dir, **fields)
     entry = root / lb.ENTRIES / "expansion" / "odmd-v1-test" / "entry.yaml"
     meta = yaml.safe_load(entry.read_text())
     meta["parameters"] = 0
     meta["speed"] = {"examples_per_second": 2.5e6, "device": PAYLOAD[:200], "command": PAYLOAD}
     entry.write_text(yaml.safe_dump(meta, sort_keys=False))
-    sets_text = {s: "5.0" for s in ("normal", "perturb", "robot", "camera", "object") if s in sets}
+    sets_text = {s: "5.0" for s in ("normal", "camera", "object", "robot")}  # (the odmd-v1 sets)
     reported = [
         {
             "method": PAYLOAD,

@@ -11,7 +11,7 @@ from typing import Any
 import pytest
 import yaml
 from click.testing import CliRunner
-from conftest import add_entry
+from conftest import two_entry_board
 
 from odmd_bench import leaderboard as lb
 from odmd_bench.cli.main import cli
@@ -30,21 +30,7 @@ HF_SOURCE_KEYS = {"url", "name", "user"}
 @pytest.fixture(scope="module")
 def board(v1_data_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A leaderboard folder: two odmd-v1 entries and the committed results reported in papers."""
-    from odmd_bench_baselines import box_ls, expansion
-
-    from odmd_bench import load_split
-    from odmd_bench.evaluation.predictions import write_predictions
-
-    tmp = tmp_path_factory.mktemp("export")
-    root = tmp / "leaderboard"
-    (root / lb.ENTRIES).mkdir(parents=True)
-    sets = load_split("test", "odmd-v1", v1_data_dir)
-    for method, module in (("box-ls", box_ls), ("expansion", expansion)):
-        preds = tmp / f"{method}.csv"
-        write_predictions(
-            preds, "test", {s: module.predict(ex) for s, ex in sets.items()}, benchmark="odmd-v1"
-        )
-        add_entry(root, v1_data_dir, preds, method)
+    root = two_entry_board(tmp_path_factory.mktemp("export"), v1_data_dir)
     shutil.copy(REPO / "leaderboard" / lb.REPORTED, root / lb.REPORTED)
     return root
 

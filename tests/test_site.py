@@ -29,7 +29,7 @@ from urllib.parse import parse_qs, urlsplit
 import pytest
 import yaml
 from click.testing import CliRunner
-from conftest import add_entry
+from conftest import two_entry_board
 
 from odmd_bench import leaderboard as lb
 from odmd_bench.cli.main import cli
@@ -309,21 +309,8 @@ def test_the_index_is_small(site: Path) -> None:
 def small_board(v1_data_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A built board of two odmd-v1 entries, one with a speed (so that the speed figure is drawn)."""
     import yaml
-    from odmd_bench_baselines import box_ls, expansion
 
-    from odmd_bench import load_split
-    from odmd_bench.evaluation.predictions import write_predictions
-
-    tmp = tmp_path_factory.mktemp("small")
-    root = tmp / "leaderboard"
-    (root / lb.ENTRIES).mkdir(parents=True)
-    sets = load_split("test", "odmd-v1", v1_data_dir)
-    for method, module in (("box-ls", box_ls), ("expansion", expansion)):
-        preds = tmp / f"{method}.csv"
-        write_predictions(
-            preds, "test", {s: module.predict(ex) for s, ex in sets.items()}, benchmark="odmd-v1"
-        )
-        add_entry(root, v1_data_dir, preds, method)
+    root = two_entry_board(tmp_path_factory.mktemp("small"), v1_data_dir)
     entry = root / lb.ENTRIES / "box-ls" / "odmd-v1-test" / "entry.yaml"
     meta = yaml.safe_load(entry.read_text())
     meta["parameters"] = 0
