@@ -132,6 +132,27 @@ def test_every_field_that_reaches_a_page_is_shown_escaped(hostile_site: Path) ->
     assert escaped in reported
 
 
+def test_the_uncertainty_page_shows_every_text_escaped() -> None:
+    """The uncertainty page (its HTML written in :func:`site_page`) with the payload in every text it shows."""
+    from odmd_bench.leaderboard.uncertainty import site_page
+
+    cell = {"coverage": {"observed": 0.9, "level": 0.9}, "interval_score": {"mean": 1.0}}
+    row = {
+        "group": 1,
+        "name": PAYLOAD,
+        "sets": {PAYLOAD: cell},
+        "all": {"coverage": 0.9, "interval_score_mean": 1.0, "crps_mean": 0.5},
+        "point_depths_of": PAYLOAD,
+    }
+    board = {"benchmark": PAYLOAD, "split": PAYLOAD, "rows": [row], "without_uncertainty": [PAYLOAD]}
+    source = site_page([board])
+    parsed = _Elements()
+    parsed.feed(source)
+    assert not parsed.tags & FORBIDDEN_TAGS and not parsed.attrs & FORBIDDEN_ATTRS
+    assert "<pwn-x" not in source and "<img src=x" not in source
+    assert "".join(parsed.text).count(PAYLOAD) >= 5  # name, set, benchmark, split, point depths, without
+
+
 @pytest.fixture(scope="module")
 def hostile_browser(hostile_site: Path, tmp_path_factory: pytest.TempPathFactory) -> Any:
     if not CHROMIUM.is_file():
