@@ -21,6 +21,7 @@ import odmd_bench
 from odmd_bench import methods
 from odmd_bench.cli.main import cli
 from odmd_bench.evaluation.parse import parse_predictions
+from odmd_bench.leaderboard.audit_check import DEPTH_RTOL
 from odmd_bench.predict.intervals import calibrate_method
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -65,10 +66,15 @@ def test_committed_90_percent_intervals_cover_85_to_95_percent_of_every_test_set
     fresh = parse_predictions(out)
     committed = parse_predictions(io.BytesIO(gzip.decompress(preds.read_bytes())))
     assert committed.level == fresh.level == 0.9
-    # Another processor changes the last bits of a float32 network or an iterative fit.
-    np.testing.assert_allclose(committed.depths, fresh.depths, rtol=1e-5, atol=1e-9)
+    # Another processor changes the last bits of a float32 network or an iterative fit: DBox's
+    # depths are within 9.5e-6 of exact float64 arithmetic (scripts/audit_kernel_error.py), so two
+    # processors differ by at most 1.9e-5; the audit's tolerance, 5e-5 (leaderboard/README.md,
+    # "Checked on any processor"). A bound is a depth times a calibrated factor, an order
+    # statistic of val residuals that moves no more than they do: twice that.
+    rtol = DEPTH_RTOL
+    np.testing.assert_allclose(committed.depths, fresh.depths, rtol=rtol, atol=1e-9)
     for c in ("depth_lo", "depth_hi", "depth_std"):
-        np.testing.assert_allclose(committed.uncertainty[c], fresh.uncertainty[c], rtol=1e-4, atol=1e-9)
+        np.testing.assert_allclose(committed.uncertainty[c], fresh.uncertainty[c], rtol=2 * rtol, atol=1e-9)
     result = odmd_bench.evaluate(out, data_dir=v1_data_dir)
     for s, m in result.sets.items():
         assert 0.85 <= m["coverage"]["observed"] <= 0.95, (
