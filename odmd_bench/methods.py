@@ -414,21 +414,26 @@ def load(name: str) -> Method:
             [f"{ep.value} (from {_source(ep)})" for ep in found],
         )
     ep = found[0]
+    return _imported(name, ep.value, _source(ep), ep.value.partition(":")[0], ep.load)
+
+
+def _imported(name: str, target: str, source: str, module: str, load: Callable[[], Any]) -> Method:
+    """The :class:`Method` that ``load()`` imports (``module``: what a missing import names)."""
     try:
-        obj = ep.load()
+        obj = load()
     except ModuleNotFoundError as e:
-        raise _missing(e, name, ep.value.partition(":")[0]) from None
+        raise _missing(e, name, module) from None
     except Exception as e:
         raise UsageError(
-            f"method {name!r} ({ep.value}, from {_source(ep)}) cannot be loaded: {type(e).__name__}: {e}"
+            f"method {name!r} ({target}, from {source}) cannot be loaded: {type(e).__name__}: {e}"
         ) from None
     missing = [f for f in ("predict", "predict_report") if not callable(getattr(obj, f, None))]
     if missing:
         raise UsageError(
-            f"method {name!r} ({ep.value}, from {_source(ep)}) is not usable: it has no "
+            f"method {name!r} ({target}, from {source}) is not usable: it has no "
             + " and no ".join(f"{f}()" for f in missing)
         )
-    return _method(name, ep.value, _source(ep), obj)
+    return _method(name, target, source, obj)
 
 
 def _method(name: str, target: str, source: str, obj: Any) -> Method:
@@ -623,21 +628,7 @@ def load_module(name: str, module: str, source: str, folder: Path | None = None)
             )
         if str(folder) not in sys.path:
             sys.path.insert(0, str(folder))
-    try:
-        obj = importlib.import_module(module)
-    except ModuleNotFoundError as e:
-        raise _missing(e, name, module) from None
-    except Exception as e:
-        raise UsageError(
-            f"method {name!r} ({module}, from {source}) cannot be loaded: {type(e).__name__}: {e}"
-        ) from None
-    missing = [f for f in ("predict", "predict_report") if not callable(getattr(obj, f, None))]
-    if missing:
-        raise UsageError(
-            f"method {name!r} ({module}, from {source}) is not usable: it has no "
-            + " and no ".join(f"{f}()" for f in missing)
-        )
-    return _method(name, module, source, obj)
+    return _imported(name, module, source, module, lambda: importlib.import_module(module))
 
 
 def accepting(keyword: str) -> list[str]:
