@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import datetime as _dt
 import re
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from pathlib import Path
 
 from odmd_bench.data.registry import BENCHMARKS, SPLITS
@@ -374,6 +374,14 @@ def scores_problems(value: object, bench: object) -> list[str]:
     return problems
 
 
+def unknown_fields(name: str, value: Mapping[str, object], fields: Iterable[str]) -> list[str]:
+    """One line per key of the mapping field ``name`` that is not one of ``fields``."""
+    known = list(fields)
+    return [
+        f"{name}: unknown field {show(k)}; the fields are {', '.join(known)}" for k in value if k not in known
+    ]
+
+
 def plugin_problems(value: object) -> list[str]:
     """``plugin``: absent, or ``{requirement}`` / ``{source, module}`` (``module`` optional with a requirement).
 
@@ -384,11 +392,7 @@ def plugin_problems(value: object) -> list[str]:
         return []
     if not isinstance(value, dict):
         return [f"plugin must be a mapping {OPTIONAL_FIELDS['plugin']}, got {show(value)}"]
-    problems = [
-        f"plugin: unknown field {show(k)}; the fields are {', '.join(PLUGIN_FIELDS)}"
-        for k in value
-        if k not in PLUGIN_FIELDS
-    ]
+    problems = unknown_fields("plugin", value, PLUGIN_FIELDS)
     for k in PLUGIN_FIELDS:
         v = value.get(k)
         if k in value and (not isinstance(v, str) or _CONTROL.search(v) or "\n" in v):
@@ -467,11 +471,7 @@ def speed_problems(value: object) -> list[str]:
         return []
     if not isinstance(value, dict):
         return [f"speed must be a mapping {OPTIONAL_FIELDS['speed']}, got {show(value)}"]
-    problems = [
-        f"speed: unknown field {show(k)}; the fields are {', '.join(SPEED_FIELDS)}"
-        for k in value
-        if k not in SPEED_FIELDS
-    ]
+    problems = unknown_fields("speed", value, SPEED_FIELDS)
     problems += [f"speed: missing field {k!r}: {what}" for k, what in SPEED_FIELDS.items() if k not in value]
     rate = value.get("examples_per_second")
     if "examples_per_second" in value and (
