@@ -19,28 +19,26 @@ ORIGINAL = Path(__file__).resolve().parents[2] / "shared" / "odmd-original"
 KITTI = Path(__file__).resolve().parents[2] / "shared" / "kitti-tracking"
 
 
-def original_dir() -> Path:
-    """The original release's folder, or skip (outside CI) / fail (in CI)."""
-    override = os.environ.get("ODMD_ORIGINAL")
-    path = Path(override) if override else ORIGINAL
-    if not (path / "odmd").is_dir():
-        message = f"the original ODMD release is not at {path} (set ODMD_ORIGINAL)"
+def shared_dir(default: Path, variable: str, marker: str, what: str) -> Path:
+    """A folder of ``../shared`` (or ``$variable``) holding ``marker``, or skip (outside CI) / fail (in CI)."""
+    override = os.environ.get(variable)
+    path = Path(override) if override else default
+    if not (path / marker).is_dir():
+        message = f"{what} not at {path} (set {variable})"
         if os.environ.get("CI"):
             pytest.fail(message + "; CI must have it", pytrace=False)
         pytest.skip(message)
     return path
 
 
+def original_dir() -> Path:
+    """The original release's folder, or skip (outside CI) / fail (in CI)."""
+    return shared_dir(ORIGINAL, "ODMD_ORIGINAL", "odmd", "the original ODMD release is")
+
+
 def kitti_dir() -> Path:
     """The raw KITTI tracking files, or skip (outside CI) / fail (in CI)."""
-    override = os.environ.get("ODMD_KITTI_TRACKING")
-    path = Path(override) if override else KITTI
-    if not (path / "label_02").is_dir():
-        message = f"the KITTI tracking files are not at {path} (set ODMD_KITTI_TRACKING)"
-        if os.environ.get("CI"):
-            pytest.fail(message + "; CI must have them", pytrace=False)
-        pytest.skip(message)
-    return path
+    return shared_dir(KITTI, "ODMD_KITTI_TRACKING", "label_02", "the KITTI tracking files are")
 
 
 @pytest.fixture(scope="session")
