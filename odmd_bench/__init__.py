@@ -11,7 +11,6 @@ Importing the package loads numpy and h5py only; torch is needed by DBox alone.
 # First: a Ctrl-C while the command line imports ends it quietly (see the module).
 from odmd_bench import _interrupt as _interrupt
 from odmd_bench._version import __version__
-from odmd_bench.data.atomic import atomic_path, atomic_write
 from odmd_bench.data.config import PRESETS, CameraConfig, GeneratorConfig
 from odmd_bench.data.describe import describe
 from odmd_bench.data.examples import Examples, fill_missing, nearest_detected_index
@@ -40,6 +39,7 @@ from odmd_bench.evaluation.predictions import write_predictions
 from odmd_bench.evaluation.result import EvaluationResult
 from odmd_bench.evaluation.scoring import evaluate
 from odmd_bench.inputs.bounds import MAX_ABS_DEPTH, MAX_ABS_WEIGHT
+from odmd_bench.outputs import atomic_path, atomic_write
 from odmd_bench.predict import predict_sequences
 from odmd_bench.predict.orientation import carry_boxes
 from odmd_bench.predict.sequences import read_sequences

@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 
 import odmd_bench
-from odmd_bench.data.atomic import atomic_write
 from odmd_bench.data.hashing import content_sha256, set_arrays
 from odmd_bench.data.io import read_set
 from odmd_bench.data.registry import set_file
 from odmd_bench.data.store import build_set, ensure_generated, manifest
+from odmd_bench.outputs import atomic_write
 
 
 @pytest.mark.parametrize("split", ["val", "test"])

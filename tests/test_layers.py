@@ -20,20 +20,23 @@ LAYERS: dict[str, int] = {
     "errors": 0,
     "_version": 0,
     "_interrupt": 0,  # imported first by the package: a Ctrl-C while the command starts
+    "data_folder": 0,  # the data folder's default place
+    "os_errors": 1,  # the OS-error vocabulary, below both inputs and outputs
     "project": 1,
     "extras": 1,
     "documents": 1,
-    "inputs": 1,
-    "data": 2,
-    "evaluation": 3,
-    "methods": 3,
-    "datasets": 3,
-    "predict": 4,
-    "kitti": 5,  # beside the public names: it uses predict (4), and nothing imports it but the CLI
-    "leaderboard": 4,
-    "": 5,  # odmd_bench/__init__.py, the public names
-    "cli": 6,
-    "__main__": 7,  # python -m odmd_bench: the command line
+    "inputs": 2,
+    "outputs": 2,  # atomic writes, temporary files, the writers' lock
+    "data": 3,
+    "evaluation": 4,
+    "methods": 4,
+    "datasets": 4,
+    "predict": 5,
+    "kitti": 6,  # beside the public names: it uses predict (5), and nothing imports it but the CLI
+    "leaderboard": 5,
+    "": 6,  # odmd_bench/__init__.py, the public names
+    "cli": 7,
+    "__main__": 8,  # python -m odmd_bench: the command line
 }
 
 

@@ -24,12 +24,12 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import odmd_bench
-from odmd_bench.data.atomic import atomic_path, clean_stale_temps, locked
 from odmd_bench.data.hashing import content_sha256, meta_sha256
 from odmd_bench.data.io import read_set, write_sets
 from odmd_bench.data.registry import set_file
 from odmd_bench.data.store import ensure_generated, manifest
 from odmd_bench.errors import DataError, MissingDataError, StorageError
+from odmd_bench.outputs import atomic_path, clean_stale_temps, locked
 
 ODMD_SETS = ("normal", "camera", "object", "robot")
 
@@ -314,7 +314,7 @@ def test_a_full_disk_is_a_clear_error(small_tmpfs: Path) -> None:
 
 def test_write_errors_are_storage_errors(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """The same, for each cause, by making the final rename fail."""
-    import odmd_bench.data.atomic as atomic_mod
+    import odmd_bench.outputs.atomic as atomic_mod
 
     for code, fix in ((errno.ENOSPC, "free space"), (errno.EACCES, "writable"), (errno.EROFS, "read-only")):
 
@@ -444,7 +444,7 @@ def test_a_sigkilled_writer_leaves_a_temp_file_that_the_next_write_removes(tmp_p
     script = textwrap.dedent(
         """
         import sys, time
-        from odmd_bench.data.atomic import atomic_path
+        from odmd_bench.outputs import atomic_path
         with atomic_path(sys.argv[1]) as tmp:
             tmp.write_bytes(b"half" * 1000)
             print(tmp, flush=True)
@@ -472,7 +472,7 @@ def test_a_sigkilled_lock_holder_leaves_the_lock_free(tmp_path: Path) -> None:
     script = textwrap.dedent(
         """
         import sys, time
-        from odmd_bench.data.atomic import locked
+        from odmd_bench.outputs import locked
         with locked(sys.argv[1]):
             print("held", flush=True)
             time.sleep(3600)
@@ -499,7 +499,7 @@ def test_writers_leave_no_lock_file_in_the_data_folder(v1: Path) -> None:
 
 def test_only_stale_temp_files_of_the_target_are_removed(tmp_path: Path) -> None:
     """A dead local writer's file goes; a live one's never; others' only when old."""
-    from odmd_bench.data.atomic import _host
+    from odmd_bench.outputs.temps import _host
 
     target = tmp_path / "test.h5"
     dead = subprocess.Popen([sys.executable, "-c", "pass"])
@@ -528,7 +528,7 @@ def test_only_stale_temp_files_of_the_target_are_removed(tmp_path: Path) -> None
 def test_text_is_written_as_utf8_whatever_the_locale(tmp_path: Path) -> None:
     """atomic_write in text mode writes UTF-8 even where the locale's encoding is ASCII."""
     out = tmp_path / "t.md"
-    code = f"from odmd_bench.data.atomic import atomic_write\nwith atomic_write({str(out)!r}, 'w') as f: f.write('\\u2265 5')"
+    code = f"from odmd_bench.outputs import atomic_write\nwith atomic_write({str(out)!r}, 'w') as f: f.write('\\u2265 5')"
     env = {**os.environ, "LC_ALL": "C", "LANG": "C", "PYTHONUTF8": "0", "PYTHONCOERCECLOCALE": "0"}
     subprocess.run([sys.executable, "-X", "utf8=0", "-c", code], env=env, check=True)
     assert out.read_bytes() == "≥ 5".encode()
@@ -578,7 +578,7 @@ def test_generating_more_than_memory_holds_is_a_usage_error() -> None:
 
 
 def test_a_fix_given_by_the_caller_is_kept_as_written() -> None:
-    from odmd_bench.data.atomic import storage_error
+    from odmd_bench.os_errors import storage_error
 
     e = storage_error(
         PermissionError(errno.EACCES, "denied"), "/d/x.h5", "read", "run `import PATH/TO/original`"
@@ -616,7 +616,7 @@ def test_several_files_are_replaced_all_or_none_when_a_move_fails(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """The second file cannot be replaced (an immutable file, say): the first gets its old text back."""
-    from odmd_bench.data import atomic
+    from odmd_bench.outputs import atomic
 
     a, b = _two_files(tmp_path)
     real = os.replace
@@ -645,7 +645,7 @@ def test_several_files_are_replaced_all_or_none_when_a_move_fails(
 
 
 def test_a_folder_in_the_place_of_one_file_stops_every_file_before_any_moves(tmp_path: Path) -> None:
-    from odmd_bench.data.atomic import atomic_paths, atomic_texts
+    from odmd_bench.outputs import atomic_paths, atomic_texts
 
     a, b = _two_files(tmp_path)
     b.unlink()
@@ -665,7 +665,7 @@ def test_a_folder_in_the_place_of_one_file_stops_every_file_before_any_moves(tmp
 def test_a_link_to_a_pipe_is_written_into_through_the_link() -> None:
     """/dev/stdout leads to a pipe with no path of its own (/proc/self/fd/1 -> pipe:[N])."""
     code = (
-        "from odmd_bench.data.atomic import atomic_write, atomic_texts\n"
+        "from odmd_bench.outputs import atomic_write, atomic_texts\n"
         "with atomic_write('/dev/stdout', 'w') as f: f.write('one\\n')\n"
         "with atomic_texts([('/dev/stdout', 'two\\n')]): pass\n"
     )
@@ -675,7 +675,7 @@ def test_a_link_to_a_pipe_is_written_into_through_the_link() -> None:
 
 
 def test_a_file_name_that_is_not_utf8_is_written_back_as_its_bytes(tmp_path: Path) -> None:
-    from odmd_bench.data.atomic import atomic_texts, atomic_write
+    from odmd_bench.outputs import atomic_texts, atomic_write
 
     name = os.fsdecode(b"bad\xff.csv")  # as Python gets it from the command line
     with atomic_write(tmp_path / "r.txt", "w") as fh:
@@ -687,7 +687,7 @@ def test_a_file_name_that_is_not_utf8_is_written_back_as_its_bytes(tmp_path: Pat
 
 
 def test_storage_errors_give_the_fix_of_the_kind_of_file() -> None:
-    from odmd_bench.data.atomic import storage_error
+    from odmd_bench.os_errors import storage_error
 
     full = OSError(errno.ENOSPC, "No space left on device")
     assert "the data folder: --data-dir" in str(storage_error(full, "/d/odmd-v1/test.h5", "write"))
@@ -766,7 +766,7 @@ def test_a_killed_nested_writer_leaves_nothing_that_the_next_writer_keeps(tmp_pa
     script = textwrap.dedent(
         """
         import sys, time
-        from odmd_bench.data.atomic import atomic_path
+        from odmd_bench.outputs import atomic_path
         with atomic_path(sys.argv[1]) as outer, atomic_path(outer) as inner:
             outer.write_bytes(b"x")
             inner.write_bytes(b"half")
@@ -781,7 +781,7 @@ def test_a_killed_nested_writer_leaves_nothing_that_the_next_writer_keeps(tmp_pa
     child.wait()
     child.stdout.close()
     assert outer.exists() and inner.exists() and inner.name.startswith(".leaderboard.png.")
-    from odmd_bench.data.atomic import _host
+    from odmd_bench.outputs.temps import _host
 
     dead = subprocess.Popen([sys.executable, "-c", "pass"])
     dead.wait()
@@ -798,7 +798,7 @@ def test_temporary_files_elsewhere_are_removed_by_the_next_writer(
     """A device's output goes through the system's temporary folder, as leaderboard add's staging."""
     import tempfile
 
-    from odmd_bench.data.atomic import _host, temp_folder
+    from odmd_bench.outputs.temps import _host, temp_folder
 
     monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
     dead = subprocess.Popen([sys.executable, "-c", "pass"])

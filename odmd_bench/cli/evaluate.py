@@ -77,7 +77,7 @@ def _emit(*reports: tuple[str, Path | None, str]) -> None:
     Every file is written before any replaces what was there, so a failure (a full
     disk, a folder that cannot be written) leaves them all as they were.
     """
-    from odmd_bench.data.atomic import atomic_texts
+    from odmd_bench.outputs import atomic_texts
 
     with atomic_texts([(out, text) for text, out, _ in reports if out is not None and str(out) != "-"]):
         pass

@@ -311,9 +311,9 @@ def speed_command(
     import subprocess
     import sys
 
-    from odmd_bench.data.atomic import atomic_write
     from odmd_bench.leaderboard.add import parse_options
     from odmd_bench.leaderboard.speed import THREAD_VARIABLES, measure, one_thread, speed_text
+    from odmd_bench.outputs import atomic_write
 
     if not one_thread():  # BLAS reads them once, at start: run again with them set
         argv = ["leaderboard", "speed", name, "--benchmark", benchmark, "--split", split]

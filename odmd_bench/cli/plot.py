@@ -225,7 +225,7 @@ def plot_command(
     curves = error_curves(results, _labels(preds, labels), set_name, error=error, bins=edges)
     first = results[0]
     heading = title or default_title(first.benchmark, first.split, set_name, error, curves[0].n)
-    from odmd_bench.data.atomic import atomic_texts
+    from odmd_bench.outputs import atomic_texts
 
     # The numbers and the figure replace their old files together, or neither does.
     outputs: list[tuple[Path, str]] = []
@@ -255,9 +255,9 @@ def _reliability(
     title: str | None,
 ) -> None:
     """``plot --reliability``: coverage against level for the files' error bars on ``set_name``."""
-    from odmd_bench.data.atomic import atomic_texts
     from odmd_bench.evaluation.plot import draw_reliability
     from odmd_bench.evaluation.uncertainty import RELIABILITY_LEVELS, reliability
+    from odmd_bench.outputs import atomic_texts
 
     curves = []
     lacking = []

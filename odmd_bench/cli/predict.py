@@ -171,7 +171,7 @@ def predict(
     import numpy as np
 
     from odmd_bench import methods
-    from odmd_bench.data.atomic import atomic_write
+    from odmd_bench.outputs import atomic_write
     from odmd_bench.predict import format_depths, method_observations, predict_sequences
     from odmd_bench.predict.report import report_line
     from odmd_bench.predict.sequences import read_sequences

@@ -31,12 +31,12 @@ from typing import Any
 import numpy as np
 
 from odmd_bench._version import __version__
-from odmd_bench.data.atomic import atomic_paths, ensure_folder
 from odmd_bench.data.examples import Examples
 from odmd_bench.data.hashing import set_arrays
 from odmd_bench.data.manifests import read_manifest
 from odmd_bench.data.registry import Benchmark
 from odmd_bench.errors import DataError
+from odmd_bench.outputs import atomic_paths, ensure_folder
 from odmd_bench.project import PAPER_BIBTEX, card_url, repository_url, site_url
 
 #: What the description conforms to.

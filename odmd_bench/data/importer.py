@@ -23,7 +23,6 @@ from typing import Any
 
 import numpy as np
 
-from odmd_bench.data.atomic import clean_stale_temps, locked
 from odmd_bench.data.config import HSR_GRASP_CAMERA
 from odmd_bench.data.examples import Examples, set_problems
 from odmd_bench.data.hashing import group_attrs
@@ -33,6 +32,7 @@ from odmd_bench.data.registry import Benchmark, get_benchmark, set_file
 from odmd_bench.data.store import pin_problem, read_checked
 from odmd_bench.errors import DataError, ImportRefused, StorageError, show_value
 from odmd_bench.inputs.source import MAX_ORIGINAL_BYTES, cap_advice, input_limit, read_at_most
+from odmd_bench.outputs import clean_stale_temps, locked
 
 log = logging.getLogger("odmd_bench")
 

@@ -3,7 +3,7 @@
 One file per benchmark and split; one group per set holding at least ``boxes``,
 ``detected``, ``camera`` and ``depth`` (docs/format.md) plus whatever else the source
 knew, with the attributes and the two hashes of :mod:`odmd_bench.data.hashing`. Files
-are written through :func:`~odmd_bench.data.atomic.atomic_path`.
+are written through :func:`~odmd_bench.outputs.atomic.atomic_path`.
 
 Every OS or HDF5 failure while reading or writing becomes a
 :class:`~odmd_bench.errors.StorageError` (an ``OSError``) or, for a damaged file, a
@@ -21,7 +21,6 @@ from typing import Any
 
 import numpy as np
 
-from odmd_bench.data.atomic import atomic_path, is_os_failure, os_cause, storage_error
 from odmd_bench.data.examples import Examples
 from odmd_bench.data.hashing import (
     CORE_ARRAYS,
@@ -33,6 +32,8 @@ from odmd_bench.data.hashing import (
     set_arrays,
 )
 from odmd_bench.errors import DataError, MissingDataError, OdmdError, StorageError
+from odmd_bench.os_errors import is_os_failure, os_cause, storage_error
+from odmd_bench.outputs import atomic_path
 
 #: Version of the file layout written here (an attribute of every file). Version 2
 #: added ``meta_sha256``; files of another version are refused and rebuilt.

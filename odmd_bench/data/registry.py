@@ -6,10 +6,8 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
+from odmd_bench.data_folder import DATA_DIR_ENV, default_data_dir  # noqa: F401 (both still importable from here)
 from odmd_bench.errors import UsageError
-
-#: Environment variable that overrides the default data folder.
-DATA_DIR_ENV = "ODMD_BENCH_DATA"
 
 SPLITS: tuple[str, ...] = ("val", "test")
 
@@ -101,22 +99,6 @@ def check_set(benchmark: Benchmark, set_name: str) -> str:
             f"expected one of {', '.join(benchmark.sets)}"
         )
     return set_name
-
-
-def default_data_dir() -> Path:
-    r"""The data folder: ``$ODMD_BENCH_DATA`` if set, else the OS's user data folder.
-
-    The user data folder follows each OS's convention through ``platformdirs``:
-    ``$XDG_DATA_HOME/odmd-bench`` (``~/.local/share/odmd-bench``) on Linux,
-    ``~/Library/Application Support/odmd-bench`` on macOS and
-    ``%LOCALAPPDATA%\odmd-bench`` on Windows.
-    """
-    env = os.environ.get(DATA_DIR_ENV)
-    if env:
-        return Path(env).expanduser()
-    import platformdirs  # here, not at the top: most commands are given a folder or the variable
-
-    return Path(platformdirs.user_data_dir("odmd-bench", appauthor=False))
 
 
 def resolve_data_dir(data_dir: str | os.PathLike[str] | None) -> Path:

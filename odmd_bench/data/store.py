@@ -21,7 +21,6 @@ from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
-from odmd_bench.data.atomic import clean_stale_temps, locked
 from odmd_bench.data.examples import Examples
 from odmd_bench.data.generator import GENERATOR_VERSION, generate
 from odmd_bench.data.hashing import content_sha256, group_attrs, set_arrays
@@ -38,6 +37,7 @@ from odmd_bench.data.registry import (
     set_file,
 )
 from odmd_bench.errors import DataError, MissingDataError, UsageError
+from odmd_bench.outputs import clean_stale_temps, locked
 
 log = logging.getLogger("odmd_bench")
 

@@ -88,7 +88,7 @@ def draw_error_curves(
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    from odmd_bench.data.atomic import atomic_path
+    from odmd_bench.outputs import atomic_path
 
     unit = ERRORS[error][1]
     fig = Figure(figsize=FIGSIZE, dpi=DPI, layout="constrained")
@@ -151,7 +151,7 @@ def draw_reliability(
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    from odmd_bench.data.atomic import atomic_path
+    from odmd_bench.outputs import atomic_path
 
     fig = Figure(figsize=(6.4, 6.4), dpi=DPI, layout="constrained")
     FigureCanvasAgg(fig)

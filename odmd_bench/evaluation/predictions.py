@@ -12,9 +12,9 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from odmd_bench.data.atomic import atomic_write
 from odmd_bench.data.registry import check_split
 from odmd_bench.errors import UsageError
+from odmd_bench.outputs import atomic_write
 
 COLUMNS = ("split", "set", "index", "depth")
 

@@ -18,12 +18,12 @@ from typing import Any
 
 import numpy as np
 
-from odmd_bench.data.atomic import atomic_write
 from odmd_bench.errors import UsageError
 from odmd_bench.evaluation.compare import Comparison, PairedDifference
 from odmd_bench.evaluation.metrics import STATS
 from odmd_bench.evaluation.result import PER_EXAMPLE_COLUMNS as PER_EXAMPLE_COLUMNS
 from odmd_bench.evaluation.result import EvaluationResult
+from odmd_bench.outputs import atomic_write
 
 FORMATS: tuple[str, ...] = ("table", "json", "csv", "markdown")
 

@@ -35,7 +35,6 @@ from typing import Any
 
 import numpy as np
 
-from odmd_bench.data.atomic import clean_stale_temps, locked
 from odmd_bench.data.examples import Examples
 from odmd_bench.data.hashing import file_sha256, group_attrs
 from odmd_bench.data.io import write_sets
@@ -44,6 +43,7 @@ from odmd_bench.data.store import pin
 from odmd_bench.errors import ImportRefused
 from odmd_bench.kitti.readers import Camera, Labels, read_camera, read_labels, read_poses
 from odmd_bench.kitti.windows import RULES, RULES_VERSION, WindowRules, box_centres, select_windows
+from odmd_bench.outputs import clean_stale_temps, locked
 from odmd_bench.predict.orientation import (
     Carry,
     carry_boxes,

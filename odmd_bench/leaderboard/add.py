@@ -12,7 +12,6 @@ import shlex
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
-from odmd_bench.data.atomic import atomic_paths, temp_folder
 from odmd_bench.data.examples import Examples
 from odmd_bench.errors import UsageError, ValidationError
 from odmd_bench.evaluation.scoring import EvaluationResult
@@ -28,6 +27,7 @@ from odmd_bench.leaderboard.entry import Entry
 from odmd_bench.leaderboard.files import ENTRIES, discover, read_capped, read_entry, read_predictions_bytes
 from odmd_bench.leaderboard.rules import MAX_PLUGIN_FILE_BYTES, method_id_problems, options_problems, show
 from odmd_bench.leaderboard.specs import BoardSpec, board_spec, rounded
+from odmd_bench.outputs import atomic_paths, temp_folder
 
 #: The folder of an entry that holds its plug-in's source (``plugin.source``), as ``add`` writes it.
 PLUGIN_FOLDER = "plugin"

@@ -18,8 +18,8 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from odmd_bench.data.atomic import atomic_texts
 from odmd_bench.leaderboard.specs import rounded
+from odmd_bench.outputs import atomic_texts
 
 if TYPE_CHECKING:
     from odmd_bench.leaderboard.board import Board
@@ -69,7 +69,7 @@ def audit_json(result: Mapping[str, Any]) -> str:
 
 def record(root: str | os.PathLike[str], result: Mapping[str, Any]) -> Path:
     """Write ``result`` to :func:`audit_path` (atomically) and return the path."""
-    from odmd_bench.data.atomic import ensure_folder
+    from odmd_bench.outputs import ensure_folder
 
     path = audit_path(root, int(result["seed"]))
     ensure_folder(path.parent)

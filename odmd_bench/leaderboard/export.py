@@ -27,11 +27,11 @@ from pathlib import Path
 from typing import Any
 
 from odmd_bench._version import __version__
-from odmd_bench.data.atomic import atomic_paths, ensure_folder
 from odmd_bench.errors import UsageError
 from odmd_bench.leaderboard.files import ENTRIES
 from odmd_bench.leaderboard.render import Built
 from odmd_bench.leaderboard.specs import rounded
+from odmd_bench.outputs import atomic_paths, ensure_folder
 from odmd_bench.project import repository_url
 
 #: The formats ``export`` writes.
@@ -221,7 +221,7 @@ def export_files(built: Built, fmt: str, *, hf_dataset: str = HF_DATASET) -> dic
 
 
 def write_export(files: Mapping[str, str], out: str | os.PathLike[str]) -> list[Path]:
-    """Write the files under the folder ``out``, all or none (:func:`~odmd_bench.data.atomic.atomic_paths`)."""
+    """Write the files under the folder ``out``, all or none (:func:`~odmd_bench.outputs.atomic.atomic_paths`)."""
     folder = Path(out)
     if folder.exists() and not folder.is_dir():
         raise UsageError(f"{folder} is a file; give a folder for the export")

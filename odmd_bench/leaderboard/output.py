@@ -12,9 +12,9 @@ import importlib.util
 import os
 from pathlib import Path
 
-from odmd_bench.data.atomic import atomic_texts
 from odmd_bench.leaderboard.files import JSON_FILE, MARKDOWN, PLOT, board_digest, plot_source
 from odmd_bench.leaderboard.render import Built
+from odmd_bench.outputs import atomic_texts
 
 
 def write(folder: str | os.PathLike[str], built: Built, *, plot: bool = True) -> list[str]:

@@ -29,7 +29,7 @@ def plot_boards(
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    from odmd_bench.data.atomic import atomic_path
+    from odmd_bench.outputs import atomic_path
 
     boards = [bd for bd in boards if bd.rows]
     n = max(1, len(boards))

@@ -161,7 +161,7 @@ def write_sequences(
     depth: bool = True,
 ) -> None:
     """Write :func:`format_sequences` to ``path`` atomically."""
-    from odmd_bench.data.atomic import atomic_write
+    from odmd_bench.outputs import atomic_write
 
     text = format_sequences(examples, image_size, names, depth=depth)
     with atomic_write(path, "w") as fh:
