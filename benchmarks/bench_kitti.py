@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from odmd_bench.kitti import readers
+from odmd_bench.kitti.readers import labels
 from odmd_bench.kitti.sets import build_sets
 
 REPO = Path(__file__).resolve().parents[1]
@@ -79,15 +79,15 @@ def test_build_sets(benchmark, kitti: Path, best_of) -> None:  # type: ignore[no
     assert sum(len(ex) for by_set in sets.values() for ex in by_set.values()) == 512
     files = sorted((kitti / "label_02").glob("*.txt"))
     texts = [(f, f.read_text()) for f in files]
-    fast = [readers._fast_labels(t) for _, t in texts]
-    careful = [readers._careful_label_rows(f, t) for f, t in texts]
+    fast = [labels._fast_labels(t) for _, t in texts]
+    careful = [labels._careful_label_rows(f, t) for f, t in texts]
     for a, b in zip(fast, careful, strict=True):
         assert a is not None and a.line.tolist() == [r[6] for r in b]
         assert a.type.tolist() == [r[2] for r in b] and a.track.tolist() == [r[1] for r in b]
         numbers = np.array([r[5] for r in b])
         assert np.array_equal(np.hstack([a.corners, a.size, a.bottom]), numbers)
-    t_fast = best_of(lambda: [readers._fast_labels(t) for _, t in texts], ROUNDS)
-    t_careful = best_of(lambda: [readers._careful_label_rows(f, t) for f, t in texts], ROUNDS)
+    t_fast = best_of(lambda: [labels._fast_labels(t) for _, t in texts], ROUNDS)
+    t_careful = best_of(lambda: [labels._careful_label_rows(f, t) for f, t in texts], ROUNDS)
     median = benchmark.stats.stats.median
     benchmark.extra_info.update(
         {

@@ -46,7 +46,7 @@ def test_a_good_label_file_is_read_and_dontcare_dropped(tmp_path: Path) -> None:
 
 
 def test_the_clean_file_path_reads_what_the_line_by_line_path_reads(tmp_path: Path) -> None:
-    from odmd_bench.kitti.readers import _careful_label_rows, _fast_labels
+    from odmd_bench.kitti.readers.labels import _careful_label_rows, _fast_labels
 
     lines = [
         DONTCARE,

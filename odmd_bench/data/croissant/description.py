@@ -1,18 +1,4 @@
-"""A benchmark as a Croissant 1.0 dataset (JSON-LD) that ``mlcroissant`` validates and loads.
-
-:func:`croissant` describes every split and set of a benchmark: a record set per set (one
-record per example: ``index``, ``boxes``, ``detected``, ``camera``, ``depth`` and the set's
-other arrays), a ``sets`` record set with each set's provenance (generator version and
-seed, or the original file and its SHA-256; content hashes; licence; camera), and a file
-per set. The files are what :func:`set_file_bytes` writes: the set's arrays as JSON.
-
-Why JSON files beside the HDF5 ones: Croissant has no HDF5 encoding, and ``mlcroissant``
-reads only CSV, TSV, JSON, JSON Lines, Parquet, text, images and audio. Of those, JSON is
-read by Python's own parser, whose floats round-trip exactly (CSV and JSON Lines go through
-pandas' parsers, which are not exact to the last bit, and Parquet would need pyarrow). The
-JSON is written with sorted keys, no whitespace and the shortest exact form of each float,
-so its bytes, and the SHA-256 each file object records, depend only on the verified arrays:
-the same on every machine. A NaN (an unknown observation depth) is written as ``null``.
+"""A benchmark's Croissant description (JSON-LD), built from its verified sets.
 
 No library writes Croissant from arrays (``mlcroissant`` reads it; its writer takes its own
 node objects and a runtime dependency we do not want), so the JSON-LD is built here as plain
@@ -22,132 +8,29 @@ dicts; the tests validate it with ``mlcroissant`` and load every set through it.
 from __future__ import annotations
 
 import hashlib
-import json
-import os
 from collections.abc import Mapping
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from odmd_bench._version import __version__
+from odmd_bench.data.croissant.set_files import DATA_TYPES, set_file_bytes, set_file_name
+from odmd_bench.data.croissant.vocabulary import (
+    ARRAY_DESCRIPTIONS,
+    CONFORMS_TO,
+    CONTEXT,
+    MIT,
+    ORIGINAL_TERMS,
+    ORIGINAL_TERMS_TEXT,
+    SET_COLUMNS,
+    SUFFIX,
+)
 from odmd_bench.data.examples import Examples
 from odmd_bench.data.hashing import set_arrays
 from odmd_bench.data.manifests import read_manifest
 from odmd_bench.data.registry import Benchmark
 from odmd_bench.errors import DataError
-from odmd_bench.outputs import atomic_paths, ensure_folder
 from odmd_bench.project import PAPER_BIBTEX, card_url, repository_url, site_url
-
-#: What the description conforms to.
-CONFORMS_TO = "http://mlcommons.org/croissant/1.0"
-
-#: The JSON-LD context of Croissant 1.0 (as its specification and ``mlcroissant`` write it).
-CONTEXT: dict[str, Any] = {
-    "@language": "en",
-    "@vocab": "https://schema.org/",
-    "citeAs": "cr:citeAs",
-    "column": "cr:column",
-    "conformsTo": "dct:conformsTo",
-    "cr": "http://mlcommons.org/croissant/",
-    "rai": "http://mlcommons.org/croissant/RAI/",
-    "data": {"@id": "cr:data", "@type": "@json"},
-    "dataType": {"@id": "cr:dataType", "@type": "@vocab"},
-    "dct": "http://purl.org/dc/terms/",
-    "equivalentProperty": "cr:equivalentProperty",
-    "examples": {"@id": "cr:examples", "@type": "@json"},
-    "extract": "cr:extract",
-    "field": "cr:field",
-    "fileProperty": "cr:fileProperty",
-    "fileObject": "cr:fileObject",
-    "fileSet": "cr:fileSet",
-    "format": "cr:format",
-    "includes": "cr:includes",
-    "isLiveDataset": "cr:isLiveDataset",
-    "jsonPath": "cr:jsonPath",
-    "key": "cr:key",
-    "md5": "cr:md5",
-    "parentField": "cr:parentField",
-    "path": "cr:path",
-    "recordSet": "cr:recordSet",
-    "references": "cr:references",
-    "regex": "cr:regex",
-    "repeated": "cr:repeated",
-    "replace": "cr:replace",
-    "samplingRate": "cr:samplingRate",
-    "sc": "https://schema.org/",
-    "separator": "cr:separator",
-    "source": "cr:source",
-    "subField": "cr:subField",
-    "transform": "cr:transform",
-}
-
-#: The licence of what odmd-bench generates (the package's own).
-MIT = "https://spdx.org/licenses/MIT.html"
-#: The original release's terms ("available for non-commercial research purposes only"),
-#: which the imported sets and the committed robot sets keep (splits/ATTRIBUTION.md).
-ORIGINAL_TERMS = "https://github.com/griffbr/ODMD"
-ORIGINAL_TERMS_TEXT = "non-commercial research use only, the terms of the original ODMD release"
-
-#: The file name of a benchmark's description.
-SUFFIX = ".croissant.json"
-
-#: How the known arrays are described (shape after the example axis, meaning).
-ARRAY_DESCRIPTIONS: dict[str, str] = {
-    "boxes": "(n_obs, 4) per example: the bounding box x, y, w, h at each observation, x and w divided by "
-    "the image width, y and h by its height; meaningless where detected is false",
-    "detected": "(n_obs,) per example: false where the detector found nothing",
-    "camera": "(n_obs, 3) per example: the camera position at each observation relative to the last one, "
-    "metres, camera axes (the last row is zero)",
-    "depth": "the object's depth Z_n at the last observation, metres (the target)",
-    "observation_depth": "(n_obs,) per example: the object's depth at each observation, metres; null where "
-    "unknown",
-    "positions": "(n_obs, 3) per example: the object's position in the camera frame at each observation, metres",
-    "size": "(2,) per example: the object's width and height, metres",
-    "camera_clean": "(n_obs, 3) per example: the camera positions before the camera perturbation, metres",
-    "replaced": "(n_obs,) per example: true where the object perturbation replaced the box by another "
-    "example's",
-}
-
-#: Croissant data types by numpy kind.
-_DATA_TYPES = {"f": "cr:Float64", "b": "sc:Boolean", "i": "sc:Integer", "u": "sc:Integer"}
-
-
-def set_file_name(benchmark: Benchmark, split: str, set_name: str) -> str:
-    """Where a set's JSON file lies, relative to the description: ``BENCHMARK/SPLIT/SET.json``."""
-    return f"{benchmark.name}/{split}/{set_name}.json"
-
-
-def _plain(a: np.ndarray) -> Any:
-    """An array as nested lists of Python values, NaN as None (JSON null)."""
-    if a.dtype.kind == "f":
-        if np.isinf(a).any():
-            raise DataError("an array holds an infinite value, which JSON cannot carry")
-        nan = np.isnan(a)
-        if nan.any():  # only then the slower object array: None where NaN
-            obj = a.astype(object)
-            obj[nan] = None
-            return obj.tolist()
-    return a.tolist()
-
-
-def set_file_bytes(examples: Examples) -> bytes:
-    """The JSON file of one set: ``{"index": [...], ARRAY: [one value per example], ...}``.
-
-    Each array is a list with one item per example (nested lists for the per-observation
-    arrays); keys are sorted, there is no whitespace, floats are written exactly (Python's
-    shortest round-trip form) and NaN as null, so the bytes are the same on every machine.
-
-    Raises:
-        DataError: an array of a kind JSON cannot carry exactly (complex, text, infinite values).
-    """
-    arrays = set_arrays(examples)
-    body: dict[str, Any] = {"index": list(range(len(examples)))}
-    for name, a in arrays.items():
-        if a.dtype.kind not in _DATA_TYPES:
-            raise DataError(f"array {name!r} has dtype {a.dtype}, which the Croissant export does not carry")
-        body[name] = _plain(np.asarray(a))
-    return json.dumps(body, sort_keys=True, separators=(",", ":"), allow_nan=False).encode("ascii")
 
 
 def _licence(pin: Mapping[str, Any]) -> str:
@@ -178,43 +61,12 @@ def _field(rs: str, name: str, a: np.ndarray, file_id: str) -> dict[str, Any]:
         "@id": f"{rs}/{name}",
         "name": f"{rs}/{name}",
         "description": f"{what} ({a.dtype}, shape {shape} per example)",
-        "dataType": _DATA_TYPES[a.dtype.kind],
+        "dataType": DATA_TYPES[a.dtype.kind],
         "source": {"fileObject": {"@id": file_id}, "extract": {"jsonPath": f"$.{name}[*]"}},
     }
     if shape:
         f["repeated"] = True
     return f
-
-
-_SET_COLUMNS: dict[str, tuple[str, str]] = {
-    "split": ("sc:Text", "the split (val: for choosing, test: for reporting)"),
-    "set": ("sc:Text", "the set"),
-    "record_set": ("sc:Text", "the record set holding its examples"),
-    "kind": (
-        "sc:Text",
-        "generated (by odmd-bench), file (committed original data) or import (original file)",
-    ),
-    "n": ("sc:Integer", "number of examples"),
-    "n_obs": ("sc:Integer", "observations per example"),
-    "generator_version": ("sc:Integer", "the generator version of a generated set (else null)"),
-    "preset": ("sc:Text", "the generator preset of a generated set"),
-    "perturbation": ("sc:Text", "the generator perturbation of a generated set"),
-    "seed": ("sc:Integer", "the seed of a generated set"),
-    "source_file": ("sc:Text", "the original release's file of an imported set"),
-    "source_sha256": ("sc:Text", "the SHA-256 of that original file"),
-    "content_sha256": (
-        "sc:Text",
-        "odmd-bench's hash of the set's arrays (docs/integrity.md), pinned in splits/",
-    ),
-    "meta_sha256": ("sc:Text", "odmd-bench's hash of the set's attributes, pinned in splits/"),
-    "license": ("sc:URL", "the set's licence"),
-    "fx": ("sc:Float", "focal length x, pixels (null where the source gives none)"),
-    "fy": ("sc:Float", "focal length y, pixels"),
-    "cx": ("sc:Float", "principal point x, pixels"),
-    "cy": ("sc:Float", "principal point y, pixels"),
-    "image_width": ("sc:Integer", "image width, pixels"),
-    "image_height": ("sc:Integer", "image height, pixels"),
-}
 
 
 def croissant(
@@ -333,7 +185,7 @@ def croissant(
                     "dataType": t,
                     "description": d,
                 }
-                for k, (t, d) in _SET_COLUMNS.items()
+                for k, (t, d) in SET_COLUMNS.items()
             ],
             "data": rows,
         },
@@ -425,59 +277,3 @@ def _description(benchmark: Benchmark, licences: list[str]) -> str:
         "them. The files are made on your machine from the verified sets (`odmd-bench generate` or "
         "`odmd-bench import`); their SHA-256 are the same everywhere. Benchmark card: " + card_url()
     )
-
-
-def croissant_text(doc: Mapping[str, Any]) -> str:
-    """The description as the file holds it: indented JSON, keys in the order built, a final newline."""
-    return json.dumps(doc, indent=2, ensure_ascii=False) + "\n"
-
-
-def write_croissant(
-    out: str | os.PathLike[str], benchmark: Benchmark, doc: Mapping[str, Any], files: Mapping[str, bytes]
-) -> list[Path]:
-    """Write ``OUT/BENCHMARK.croissant.json`` and the files it describes, all or none.
-
-    Returns:
-        The paths written, the description first.
-
-    Raises:
-        StorageError: a file cannot be written (nothing is replaced then).
-    """
-    folder = Path(out)
-    paths = [folder / f"{benchmark.name}{SUFFIX}", *(folder / rel for rel in files)]
-    for p in paths:
-        ensure_folder(p.parent)
-    with atomic_paths(paths) as temps:
-        temps[0].write_text(croissant_text(doc), encoding="utf-8")
-        for tmp, data in zip(temps[1:], files.values(), strict=True):
-            tmp.write_bytes(data)
-    return paths
-
-
-def describe_benchmark(
-    benchmark: Benchmark, data_dir: str | os.PathLike[str] | None = None
-) -> tuple[dict[str, Any], dict[str, bytes]]:
-    """:func:`croissant` of a benchmark's sets as found in the data folder (each verified on load).
-
-    A generated benchmark missing there is generated first; an imported one must have
-    been imported (the error names the command).
-    """
-    from odmd_bench.data.store import load_split
-
-    return croissant(benchmark, {s: load_split(s, benchmark, data_dir) for s in benchmark.splits})
-
-
-__all__ = [
-    "ARRAY_DESCRIPTIONS",
-    "CONFORMS_TO",
-    "CONTEXT",
-    "MIT",
-    "ORIGINAL_TERMS",
-    "SUFFIX",
-    "croissant",
-    "croissant_text",
-    "describe_benchmark",
-    "set_file_bytes",
-    "set_file_name",
-    "write_croissant",
-]
