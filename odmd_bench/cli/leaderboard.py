@@ -167,8 +167,10 @@ def site_command(
     recorded SHA-256 or scores differ from its re-scoring stops it, as `check` fails).
     Serve the folder with any web server, e.g. python -m http.server -d DIR.
     """
+    from odmd_bench.extras import require
     from odmd_bench.leaderboard.site import build_site, write_site
 
+    require("jinja2", "site", "odmd-bench leaderboard site")  # before scoring: fail fast
     folder = _root(root)
     files, said = build_site(
         folder,
