@@ -838,3 +838,26 @@ def test_build_and_check_need_no_jinja2() -> None:
     )
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=False)
     assert done.returncode == 0 and done.stdout == "ok\n", done.stderr
+
+
+def test_the_pages_workflow_installs_the_site_extra() -> None:
+    """docs/pages-workflow.yml runs `leaderboard site`: it installs [site] (and [plot] for the figures)."""
+    workflow = yaml.safe_load((REPO / "docs" / "pages-workflow.yml").read_text(encoding="utf-8"))
+    runs = "\n".join(s.get("run", "") for s in workflow["jobs"]["build"]["steps"])
+    assert "odmd-bench leaderboard site" in runs
+    installs = re.findall(r'pip install "\.\[([a-z,]+)\]"', runs)
+    assert any({"site", "plot"} <= set(extras.split(",")) for extras in installs), installs
+
+
+def test_jinja2_is_the_site_extra_in_all_and_not_a_base_requirement() -> None:
+    tomllib = pytest.importorskip("tomllib")
+    project = tomllib.loads((REPO / "pyproject.toml").read_text(encoding="utf-8"))["project"]
+
+    def names(requirements: list[str]) -> set[str]:
+        return {re.split(r"[^A-Za-z0-9._-]", r, maxsplit=1)[0].lower() for r in requirements}
+
+    extras = project["optional-dependencies"]
+    assert "jinja2" not in names(project["dependencies"])
+    assert names(extras["site"]) == {"jinja2", "markupsafe"}
+    own = re.fullmatch(r"odmd-bench\[([^\]]+)\]", "".join(extras["all"]))
+    assert own and "site" in own.group(1).split(",")
