@@ -314,27 +314,52 @@ def render_site(
         figures=figures,
     )
     for method, mine in sorted(methods.items()):
-        first = mine[0][0]
-        meta = first.data["metadata"]
-        files[f"methods/{method}.html"] = _page(
-            "method.html",
-            f"{first.data['name']}: ODMD leaderboard",
-            "../",
-            digest,
-            first=first,
-            method=method,
-            paper=_markup(_link(meta["paper"], source_url)),
-            code=_markup(_link(meta["code"], source_url)),
-            mine=mine,
-            figures=figures,
-            sha256={r.board: hashlib.sha256(files[predictions_path(r)]).hexdigest() for r, _ in mine},
-            predictions_path=predictions_path,
-            figure_path=figure_path,
-            reproduce=reproduce,
-            extras=lambda r: [(c, v) for c in EXTRA_COLUMNS if (v := _extra(r, c)) is not None],
-            n_resamples=site.n_resamples,
-            rank_seed=RANK_SEED,
-        )
+        files[f"methods/{method}.html"] = _method_page(method, mine, site, files, figures, source_url, digest)
+    files["reported.html"] = _page(
+        "reported.html", "Reported in papers: ODMD leaderboard", "", digest, **_reported(site)
+    )
+    return dict(sorted(files.items()))
+
+
+def _method_page(
+    method: str,
+    mine: list[tuple[SiteRow, SiteBoard]],
+    site: SiteData,
+    files: dict[str, bytes],
+    figures: bool,
+    source_url: str | None,
+    digest: str,
+) -> bytes:
+    """The page of ``method``: a section per board it is on (``mine``); ``files`` holds its predictions."""
+    first = mine[0][0]
+    meta = first.data["metadata"]
+    return _page(
+        "method.html",
+        f"{first.data['name']}: ODMD leaderboard",
+        "../",
+        digest,
+        first=first,
+        method=method,
+        paper=_markup(_link(meta["paper"], source_url)),
+        code=_markup(_link(meta["code"], source_url)),
+        mine=mine,
+        figures=figures,
+        sha256={r.board: hashlib.sha256(files[predictions_path(r)]).hexdigest() for r, _ in mine},
+        predictions_path=predictions_path,
+        figure_path=figure_path,
+        reproduce=reproduce,
+        extras=lambda r: [(c, v) for c in EXTRA_COLUMNS if (v := _extra(r, c)) is not None],
+        n_resamples=site.n_resamples,
+        rank_seed=RANK_SEED,
+    )
+
+
+def _reported(site: SiteData) -> dict[str, Any]:
+    """The reported page's ``tables`` and the board's ``rows``, for its template.
+
+    A table per benchmark and split, ``(benchmark, split, sets, [(index in the JSON, result)])``;
+    the rows by ``(method, benchmark, split)``, where an entry re-scores a reported result.
+    """
     rows = {(r.method, b.spec.benchmark, b.spec.split): r for b in site.boards for r in b.rows}
     reported = list(enumerate(site.data.get("reported", [])))
     tables = [
@@ -346,10 +371,7 @@ def render_site(
         )
         for bench, split in sorted({(x["benchmark"], x["split"]) for _, x in reported})
     ]
-    files["reported.html"] = _page(
-        "reported.html", "Reported in papers: ODMD leaderboard", "", digest, tables=tables, rows=rows
-    )
-    return dict(sorted(files.items()))
+    return {"tables": tables, "rows": rows}
 
 
 def _asset(name: str) -> bytes:
