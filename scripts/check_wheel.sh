@@ -3,13 +3,13 @@
 #   1. build it from the tracked and not-ignored files (no stale build/ folder can leak in);
 #   2. check what it holds: odmd_bench and odmd_bench_baselines only (nothing of tests/,
 #      leaderboard/ or benchmarks/), every .py file of odmd_bench/ and baselines/, every
-#      shipped DBox weights file, and torch and matplotlib required by extras only;
+#      shipped DBox weights file, and torch, matplotlib and Jinja2 required by extras only;
 #   3. install it into a fresh venv, and from a folder outside the repository, with a data
 #      folder of its own, run generate, baseline box-ls and dbox, evaluate and import;
-#   4. install it into a second venv where torch and matplotlib cannot be imported: generate,
+#   4. install it into a second venv where torch, matplotlib and Jinja2 cannot be imported: generate,
 #      box-ls, evaluate, compare, import and the leaderboard check (CI's gate: every entry
-#      re-scored from its committed predictions) run, and `baseline dbox`, `train-dbox` and
-#      `plot` exit 2 naming the extra to install;
+#      re-scored from its committed predictions) run, and `baseline dbox`, `train-dbox`,
+#      `plot` and `leaderboard site` exit 2 naming the extra to install;
 #   5. run the whole test suite, once, on the first venv's installed wheel (not the checkout): the
 #      one pass of the suite that scripts/check.sh makes (its progress shown as it runs).
 # The venvs reuse the dependencies already installed in the running Python's environment
@@ -110,7 +110,7 @@ if lost:
 requires = re.findall(r"^Requires-Dist: (.*)$", metadata, flags=re.M)
 for req in requires:
     name = re.match(r"[A-Za-z0-9._-]+", req).group(0).lower()
-    if name in ("torch", "matplotlib") and "extra ==" not in req:
+    if name in ("torch", "matplotlib", "jinja2") and "extra ==" not in req:
         problems.append(f"{name} is required without an extra: {req}")
 print("Requires-Dist:", "; ".join(requires))
 methods = re.search(r"^\[odmd_bench\.methods\]\n((?:.+\n?)*)", entry_points, flags=re.M)
@@ -139,7 +139,7 @@ make_venv() {  # make_venv DIR [BLOCKED_MODULE...]: a venv with the wheel, deps 
         || { cat "$work/install.log" >&2; fail "the wheel does not install into $dir"; }
 }
 make_venv "$work/full"
-make_venv "$work/base" torch matplotlib
+make_venv "$work/base" torch matplotlib jinja2 markupsafe
 took "two venvs made"
 mkdir "$work/run"
 cd "$work/run"  # outside the repository: only the installed wheel can be imported
@@ -173,14 +173,14 @@ else
 fi
 took "the full venv's commands"
 
-echo "installed wheel, base (torch and matplotlib cannot be imported):"
+echo "installed wheel, base (torch, matplotlib and Jinja2 cannot be imported):"
 "$work/base/bin/python" -c 'import sys
-for m in ("torch", "matplotlib"):
+for m in ("torch", "matplotlib", "jinja2"):
     try:
         __import__(m)
     except ImportError:
         continue
-    sys.exit(m + " can be imported")' || fail "the base venv can import torch or matplotlib"
+    sys.exit(m + " can be imported")' || fail "the base venv can import torch, matplotlib or jinja2"
 rm -rf "$ODMD_BENCH_DATA/odmd-v1"  # generated again, without torch
 run base generate --split test
 run base baseline box-ls -o box-base.csv
@@ -219,6 +219,8 @@ needs_extra dbox "baseline dbox" baseline dbox -o dbox-base.csv
 [ ! -e dbox-base.csv ] || fail "[base] baseline dbox wrote a file"
 needs_extra dbox "train-dbox" train-dbox --steps 1 --out train-base
 needs_extra plot "plot" plot box.csv --set normal -o fig.png
+needs_extra site "leaderboard site" leaderboard site -o site-base
+[ ! -e site-base ] || fail "[base] leaderboard site wrote a folder"
 took "the base venv's commands"
 
 # --- 4. the test suite on the installed wheel ------------------------------------------------

@@ -19,6 +19,8 @@ import json
 import os
 import re
 import shutil
+import subprocess
+import sys
 import threading
 from collections.abc import Iterator
 from html.parser import HTMLParser
@@ -781,3 +783,81 @@ def test_browser_the_speed_figures_labels_neither_overlap_nor_leave_it(
         page.screenshot(path=str(shot), full_page=True)  # for review: look at it
         assert shot.stat().st_size > 10_000
     page.goto(base + "index.html")  # the page for the tests after this one
+
+
+# ----------------------------------------------------------------------------- the templates and the [site] extra
+
+
+def test_every_value_a_template_prints_is_escaped(small_board: Path, v1_data_dir: Path) -> None:
+    """Autoescaping: the entry's text reaches the pages as text, never as markup."""
+    from odmd_bench.leaderboard.site import load_site_data, render_site
+
+    site = load_site_data(small_board, v1_data_dir, n_resamples=FAST)
+    row = next(r for b in site.boards for r in b.rows if r.method == "expansion")
+    hostile = "<script>alert(\"x\")</script> & 'y'"
+    row.data["name"] = row.data["metadata"]["notes"] = hostile
+    row.data["metadata"]["speed"] = {"examples_per_second": 2.0, "device": hostile, "command": hostile}
+    files = render_site(site, figures=False)
+    shown = "&lt;script&gt;alert(&quot;x&quot;)&lt;/script&gt; &amp; &#x27;y&#x27;"
+    for page in ("index.html", "methods/expansion.html"):
+        text = files[page].decode()
+        assert "<script>alert" not in text and shown in text, page
+    assert f'title="{shown}"' in files["index.html"].decode()  # an attribute's value too
+    assert f"<dt>Notes</dt><dd>{shown}</dd>" in files["methods/expansion.html"].decode()
+
+
+def test_the_site_without_jinja2_names_the_extra_and_fails_before_scoring(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from odmd_bench.leaderboard.site import pages
+
+    monkeypatch.setitem(sys.modules, "jinja2", None)  # makes `import jinja2` fail
+    pages.environment.cache_clear()
+    try:
+        out = tmp_path / "site"
+        # no leaderboard folder, no data: the command fails before it looks for either
+        done = CliRunner().invoke(
+            cli, ["leaderboard", "site", "-o", str(out), "--root", str(tmp_path / "no")]
+        )
+        assert done.exit_code == 2, done.output
+        assert "odmd-bench leaderboard site needs jinja2, which is not installed" in done.output
+        assert "pip install 'odmd-bench[site]'" in done.output and not out.exists()
+        with pytest.raises(UsageError, match=re.escape("pip install 'odmd-bench[site]'")):
+            pages.environment()
+    finally:
+        pages.environment.cache_clear()
+
+
+def test_build_and_check_need_no_jinja2() -> None:
+    """The board's commands import nothing of the [site] extra (only `leaderboard site` needs it)."""
+    code = (
+        "import sys; sys.modules['jinja2'] = sys.modules['markupsafe'] = None\n"
+        "import odmd_bench.cli.leaderboard, odmd_bench.leaderboard.site, odmd_bench.leaderboard.audit_check\n"
+        "from odmd_bench.leaderboard import build, check_report, write\n"
+        "print('ok')"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=False)
+    assert done.returncode == 0 and done.stdout == "ok\n", done.stderr
+
+
+def test_the_pages_workflow_installs_the_site_extra() -> None:
+    """docs/pages-workflow.yml runs `leaderboard site`: it installs [site] (and [plot] for the figures)."""
+    workflow = yaml.safe_load((REPO / "docs" / "pages-workflow.yml").read_text(encoding="utf-8"))
+    runs = "\n".join(s.get("run", "") for s in workflow["jobs"]["build"]["steps"])
+    assert "odmd-bench leaderboard site" in runs
+    installs = re.findall(r'pip install "\.\[([a-z,]+)\]"', runs)
+    assert any({"site", "plot"} <= set(extras.split(",")) for extras in installs), installs
+
+
+def test_jinja2_is_the_site_extra_in_all_and_not_a_base_requirement() -> None:
+    tomllib = pytest.importorskip("tomllib")
+    project = tomllib.loads((REPO / "pyproject.toml").read_text(encoding="utf-8"))["project"]
+
+    def names(requirements: list[str]) -> set[str]:
+        return {re.split(r"[^A-Za-z0-9._-]", r, maxsplit=1)[0].lower() for r in requirements}
+
+    extras = project["optional-dependencies"]
+    assert "jinja2" not in names(project["dependencies"])
+    assert names(extras["site"]) == {"jinja2", "markupsafe"}
+    own = re.fullmatch(r"odmd-bench\[([^\]]+)\]", "".join(extras["all"]))
+    assert own and "site" in own.group(1).split(",")

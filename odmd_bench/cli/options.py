@@ -33,6 +33,31 @@ data_dir_or_out_option = click.option(
     "--data-dir", "--out", "data_dir", type=_DATA_DIR_TYPE, default=None, help=DATA_DIR_HELP
 )
 
+#: ``--root``: the leaderboard folder of the ``leaderboard`` commands (see :func:`leaderboard_root`).
+root_option = click.option(
+    "--root",
+    type=click.Path(file_okay=False, path_type=Path),
+    default=None,
+    help="The leaderboard folder [default: leaderboard/ in the current folder or a parent].",
+)
+
+#: ``--original``: the original release, imported where the ``leaderboard`` commands need odmd-paper.
+original_option = click.option(
+    "--original",
+    type=click.Path(exists=True, file_okay=False, path_type=Path),
+    envvar="ODMD_ORIGINAL",
+    default=None,
+    help="The original ODMD release's data folder (e.g. ../shared/odmd-original), imported into the "
+    "data folder when odmd-paper is missing there [env: ODMD_ORIGINAL].",
+)
+
+
+def leaderboard_root(root: Path | None) -> Path:
+    """``--root``, or the leaderboard folder found from the current one."""
+    from odmd_bench.leaderboard import find_root
+
+    return root if root is not None else find_root()
+
 
 def same_file(a: Path, b: Path) -> bool:
     """Whether two paths name one file (symbolic and hard links alike)."""

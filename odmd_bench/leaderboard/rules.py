@@ -1,150 +1,55 @@
-"""The rules an entry's metadata must follow: its fields, their limits, and each check.
+"""The rules an entry's metadata must follow: the required fields' checks, and all of them at once.
 
-Values from the document are shown in messages only as short quoted text (at most
-:data:`SHOWN_CHARS` characters) or by their kind ("a mapping"), never as a ``repr`` of
-parsed data.
+:func:`content_problems` runs every rule that depends on the metadata alone; the fields and
+their limits are in :mod:`~odmd_bench.leaderboard.entry_fields`, the optional fields' rules
+in :mod:`~odmd_bench.leaderboard.optional_fields` (both re-exported here, where the
+package's modules import them from).
 """
 
 from __future__ import annotations
 
 import datetime as _dt
 import re
-from collections.abc import Iterable, Mapping
+from collections.abc import Mapping
 from pathlib import Path
 
 from odmd_bench.data.registry import BENCHMARKS, SPLITS
-from odmd_bench.leaderboard.specs import BOARDS
-
-#: Metadata files an entry folder may hold (exactly one of them).
-ENTRY_FILES: tuple[str, ...] = ("entry.yaml", "entry.json")
-#: The values of ``selected_on``: ``val`` (chosen on validation sets), ``test`` (chosen on the
-#: test sets: refused, a use of the test labels), ``nothing`` (no choice made on any data).
-SELECTED_ON: tuple[str, ...] = ("val", "test", "nothing")
-#: The values of ``training_kind``: ``none`` (nothing trained or fitted on data), ``generator``
-#: (generated examples, the ODMD/ODMS generator), ``real`` (recorded data), ``other``.
-TRAINING_KINDS: tuple[str, ...] = ("none", "generator", "real", "other")
-#: Fields every entry must have: name -> what is expected.
-REQUIRED_FIELDS: dict[str, str] = {
-    "method": "the method's id (lowercase letters, digits, '.', '_', '-'), the same as its folder",
-    "name": "the name shown in the table",
-    "description": "one or two sentences",
-    "paper": "an http(s) link, or 'none'",
-    "code": "an http(s) link, or a path in this repository",
-    "training_data": "what it was trained or tuned on ('none' for analytical methods)",
-    "command": "the exact command that produced the predictions",
-    "date": "when the predictions were made, YYYY-MM-DD, not in the future",
-    "benchmark": f"one of {', '.join(BENCHMARKS)}",
-    "split": f"one of {', '.join(SPLITS)}",
-    "sets_content_sha256": "{set: SHA-256 of the set's content} for every set the predictions were made for",
-    "calibrated": "true if the method uses the camera intrinsics, else false",
-    "predictions": "the predictions file in the entry folder (.csv or .csv.gz)",
-    "predictions_sha256": "SHA-256 of the predictions' CSV content (after gzip decompression), written by add",
-    "scores": "{set: mean percent error, ..., all: their mean}, written by add; check re-scores and compares",
-    "uses_test_labels": "whether the test labels were used in any way (training, tuning, selection); "
-    "must be false to be on the board",
-    "selected_on": f"what the method (weights, hyperparameters, checkpoint) was selected on: one of {', '.join(SELECTED_ON)}",
-    "training_kind": f"the kind of training data: one of {', '.join(TRAINING_KINDS)} "
-    "(the details go in training_data)",
-}
-#: Fields an entry may have.
-OPTIONAL_FIELDS: dict[str, str] = {
-    "notes": "anything else a reader should know",
-    "plugin": "how to get a method not shipped in this repository: {requirement: NAME==VERSION} or "
-    "{source: FOLDER, module: MODULE} (plain .py files in FOLDER of the entry folder); module optional "
-    "with a requirement",
-    "options": "{option: value} the method's options the predictions were made with (text, numbers, true/false)",
-    "parameters": "the number of trained parameters (network weights) the command runs, a whole number; "
-    "0 for a method without trained weights",
-    "speed": "{examples_per_second: a number > 0, device: the CPU or GPU model, command: the command "
-    "that measured it}",
-}
-#: The keys of ``plugin``.
-PLUGIN_FIELDS: dict[str, str] = {
-    "requirement": "a pinned requirement NAME==VERSION, installed with pip install NAME==VERSION",
-    "source": "a folder in the entry folder holding the plug-in's plain .py files",
-    "module": "the module that is the method (dotted name), e.g. my_package.my_method",
-}
-#: Most options an entry records, and the longest option value (characters).
-MAX_OPTIONS = 20
-MAX_OPTION_CHARS = 300
-#: Limits of a plug-in's source folder: files, bytes per file, bytes in all.
-MAX_PLUGIN_FILES = 50
-MAX_PLUGIN_FILE_BYTES = 256 * 1024
-MAX_PLUGIN_BYTES = 1024 * 1024
-#: Scores agree when equal at this many decimals (``leaderboard.json``'s rounding).
-SCORE_DECIMALS = 6
-
-#: The fields of ``speed``: name -> what is expected.
-SPEED_FIELDS: dict[str, str] = {
-    "examples_per_second": "examples predicted per second, a number > 0",
-    "device": "the CPU or GPU model it ran on (one line, at most 200 characters)",
-    "command": "the command that measured it (one line, at most 500 characters)",
-}
-#: Longest text of each text field of ``speed``.
-SPEED_LENGTHS: dict[str, int] = {"device": 200, "command": 500}
-#: Largest ``parameters`` count accepted (far above any model of this task).
-MAX_PARAMETERS = 10**15
-#: Longest value of each text field, in characters.
-MAX_LENGTHS: dict[str, int] = {
-    "method": 40,
-    "name": 80,
-    "description": 500,
-    "paper": 300,
-    "code": 300,
-    "training_data": 500,
-    "command": 500,
-    "benchmark": 40,
-    "split": 40,
-    "predictions": 40,
-    "predictions_sha256": 64,
-    "selected_on": 40,
-    "training_kind": 40,
-    "notes": 1000,
-}
-#: Text fields that must fit on one line (the others may hold newlines, no other control characters).
-ONE_LINE: frozenset[str] = frozenset(
-    {
-        "method",
-        "name",
-        "paper",
-        "code",
-        "benchmark",
-        "split",
-        "predictions",
-        "predictions_sha256",
-        "selected_on",
-        "training_kind",
-    }
+from odmd_bench.leaderboard.entry_fields import (
+    CONTROL,
+    ENTRY_FILES,
+    MAX_LENGTHS,
+    MAX_OPTION_CHARS,
+    MAX_OPTIONS,
+    MAX_PARAMETERS,
+    MAX_PLUGIN_BYTES,
+    MAX_PLUGIN_FILE_BYTES,
+    MAX_PLUGIN_FILES,
+    ONE_LINE,
+    OPTIONAL_FIELDS,
+    PLUGIN_FIELDS,
+    REQUIRED_FIELDS,
+    SCORE_DECIMALS,
+    SELECTED_ON,
+    SHOWN_CHARS,
+    SPEED_FIELDS,
+    SPEED_LENGTHS,
+    TRAINING_KINDS,
+    show,
+    unknown_fields,
 )
-#: How many characters of a value a message shows.
-SHOWN_CHARS = 60
+from odmd_bench.leaderboard.optional_fields import (
+    options_problems,
+    parameters_problems,
+    plugin_problems,
+    requirement_name,
+    speed_problems,
+)
+from odmd_bench.leaderboard.specs import BOARDS
 
 _METHOD_ID = re.compile(r"[a-z0-9][a-z0-9._-]*")
 _SHA256 = re.compile(r"[0-9a-f]{64}")
 _DATE = re.compile(r"\d{4}-\d{2}-\d{2}")
 _URL = re.compile(r"https?://\S+")
-_CONTROL = re.compile(r"[\x00-\x09\x0b-\x1f\x7f]")
-# A pinned requirement: a PEP 508 distribution name, ``==`` and a PEP 440 version (no
-# extras, URLs, markers or wildcards). packaging would parse all of PEP 508, but it is not
-# a dependency, and this one shape is all an entry may give.
-_REQUIREMENT = re.compile(
-    r"([A-Za-z0-9](?:[A-Za-z0-9._-]{0,98}[A-Za-z0-9])?)==([0-9][0-9A-Za-z.+!_-]{0,60})(?<!\*)"
-)
-_MODULE = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(?:\.[A-Za-z_][A-Za-z0-9_]*){0,9}")
-_OPTION = re.compile(r"[a-z][a-z0-9_]{0,39}")
-_FOLDER_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_-]{0,39}")
-
-
-def show(value: object) -> str:
-    """A value for a message: short quoted text, or its kind (never a repr of parsed data)."""
-    if isinstance(value, str):
-        return repr(value) if len(value) <= SHOWN_CHARS else repr(value[:SHOWN_CHARS]) + "..."
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, (int, float)):
-        return show(str(value))
-    kinds = {dict: "a mapping", list: "a list", _dt.date: "a date", type(None): "nothing"}
-    return next((k for t, k in kinds.items() if isinstance(value, t)), f"a {type(value).__name__}")
 
 
 def method_id_problems(method: str) -> list[str]:
@@ -187,7 +92,7 @@ def field_problems(data: Mapping[str, object]) -> tuple[list[str], set[str]]:
             problems.append(f"field {k!r} must be text, got {show(v)}")
         elif len(v) > limit:
             problems.append(f"field {k!r} is {len(v)} characters long; at most {limit} are allowed")
-        elif _CONTROL.search(v) or (k in ONE_LINE and "\n" in v):
+        elif CONTROL.search(v) or (k in ONE_LINE and "\n" in v):
             one = "line breaks or " if k in ONE_LINE else ""
             problems.append(f"field {k!r} must not hold {one}control characters")
         else:
@@ -374,118 +279,40 @@ def scores_problems(value: object, bench: object) -> list[str]:
     return problems
 
 
-def unknown_fields(name: str, value: Mapping[str, object], fields: Iterable[str]) -> list[str]:
-    """One line per key of the mapping field ``name`` that is not one of ``fields``."""
-    known = list(fields)
-    return [
-        f"{name}: unknown field {show(k)}; the fields are {', '.join(known)}" for k in value if k not in known
-    ]
-
-
-def plugin_problems(value: object) -> list[str]:
-    """``plugin``: absent, or ``{requirement}`` / ``{source, module}`` (``module`` optional with a requirement).
-
-    Where the source folder is and what it holds is checked with the entry's files
-    (:func:`odmd_bench.leaderboard.files.read_entry`).
-    """
-    if value is None:
-        return []
-    if not isinstance(value, dict):
-        return [f"plugin must be a mapping {OPTIONAL_FIELDS['plugin']}, got {show(value)}"]
-    problems = unknown_fields("plugin", value, PLUGIN_FIELDS)
-    for k in PLUGIN_FIELDS:
-        v = value.get(k)
-        if k in value and (not isinstance(v, str) or _CONTROL.search(v) or "\n" in v):
-            problems.append(f"plugin: {k} must be one line of text, got {show(v)}")
-    given = [k for k in ("requirement", "source") if k in value]
-    if len(given) != 1:
-        problems.append("plugin must give exactly one of requirement (NAME==VERSION) and source (a folder)")
-    requirement, source, module = (value.get(k) for k in PLUGIN_FIELDS)
-    if isinstance(requirement, str) and not _REQUIREMENT.fullmatch(requirement):
-        problems.append(
-            f"plugin: requirement {show(requirement)} must be pinned as NAME==VERSION (== only; no "
-            "extras, URL, marker or wildcard), so that everyone installs the same code"
-        )
-    if isinstance(source, str) and not _FOLDER_NAME.fullmatch(source):
-        problems.append(
-            f"plugin: source {show(source)} must be the name of a folder in the entry folder "
-            "(letters, digits, '_', '-'; not a path)"
-        )
-    if "source" in value and "module" not in value:
-        problems.append("plugin: a source needs module, the module in it that is the method")
-    if isinstance(module, str) and not _MODULE.fullmatch(module):
-        problems.append(f"plugin: module {show(module)} is not a dotted module name")
-    return problems
-
-
-def requirement_name(requirement: str) -> str | None:
-    """The distribution name of a pinned requirement ``NAME==VERSION`` (None if it is not one)."""
-    m = _REQUIREMENT.fullmatch(requirement)
-    return m.group(1) if m else None
-
-
-def options_problems(value: object) -> list[str]:
-    """``options``: absent, or at most :data:`MAX_OPTIONS` ``name: value`` pairs.
-
-    A name is lowercase letters, digits and ``_`` (the keyword the method takes); a value
-    is one line of text (at most :data:`MAX_OPTION_CHARS` characters), a number or true/false.
-    """
-    if value is None:
-        return []
-    if not isinstance(value, dict):
-        return [f"options must be a mapping {OPTIONAL_FIELDS['options']}, got {show(value)}"]
-    problems = []
-    if len(value) > MAX_OPTIONS:
-        problems.append(f"options holds {len(value)} options; at most {MAX_OPTIONS} are allowed")
-    for k, v in value.items():
-        if not isinstance(k, str) or not _OPTION.fullmatch(k):
-            problems.append(
-                f"options: name {show(k)} must be lowercase letters, digits and '_' (the method's keyword)"
-            )
-        if isinstance(v, str):
-            if len(v) > MAX_OPTION_CHARS or not v or _CONTROL.search(v) or "\n" in v:
-                problems.append(
-                    f"options: the value of {show(k)} must be one line of 1 to {MAX_OPTION_CHARS} characters"
-                )
-        elif isinstance(v, float) and not abs(v) < float("inf"):
-            problems.append(f"options: the value of {show(k)} must be a finite number")
-        elif not isinstance(v, (bool, int, float)):
-            problems.append(
-                f"options: the value of {show(k)} must be text, a number or true/false, got {show(v)}"
-            )
-    return problems
-
-
-def parameters_problems(value: object) -> list[str]:
-    """``parameters``: absent, or a whole number from 0 to :data:`MAX_PARAMETERS`."""
-    if value is None:
-        return []
-    if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value <= MAX_PARAMETERS:
-        return [f"parameters must be {OPTIONAL_FIELDS['parameters']}, got {show(value)}"]
-    return []
-
-
-def speed_problems(value: object) -> list[str]:
-    """``speed``: absent, or exactly the fields of :data:`SPEED_FIELDS`, each as described."""
-    if value is None:
-        return []
-    if not isinstance(value, dict):
-        return [f"speed must be a mapping {OPTIONAL_FIELDS['speed']}, got {show(value)}"]
-    problems = unknown_fields("speed", value, SPEED_FIELDS)
-    problems += [f"speed: missing field {k!r}: {what}" for k, what in SPEED_FIELDS.items() if k not in value]
-    rate = value.get("examples_per_second")
-    if "examples_per_second" in value and (
-        isinstance(rate, bool) or not isinstance(rate, (int, float)) or not 0 < rate < float("inf")
-    ):
-        problems.append(f"speed: examples_per_second must be a number > 0, got {show(rate)}")
-    for k, limit in SPEED_LENGTHS.items():
-        v = value.get(k)
-        if k not in value:
-            continue
-        if not isinstance(v, str) or not v.strip():
-            problems.append(f"speed: field {k!r} must be text, got {show(v)}")
-        elif len(v) > limit:
-            problems.append(f"speed: field {k!r} is {len(v)} characters long; at most {limit} are allowed")
-        elif _CONTROL.search(v) or "\n" in v:
-            problems.append(f"speed: field {k!r} must not hold line breaks or control characters")
-    return problems
+__all__ = [
+    "CONTROL",
+    "ENTRY_FILES",
+    "MAX_LENGTHS",
+    "MAX_OPTIONS",
+    "MAX_OPTION_CHARS",
+    "MAX_PARAMETERS",
+    "MAX_PLUGIN_BYTES",
+    "MAX_PLUGIN_FILES",
+    "MAX_PLUGIN_FILE_BYTES",
+    "ONE_LINE",
+    "OPTIONAL_FIELDS",
+    "PLUGIN_FIELDS",
+    "REQUIRED_FIELDS",
+    "SCORE_DECIMALS",
+    "SELECTED_ON",
+    "SHOWN_CHARS",
+    "SPEED_FIELDS",
+    "SPEED_LENGTHS",
+    "TRAINING_KINDS",
+    "code_problems",
+    "content_problems",
+    "field_problems",
+    "folder_problems",
+    "honesty_problems",
+    "latest_date",
+    "method_id_problems",
+    "options_problems",
+    "parameters_problems",
+    "parse_date",
+    "plugin_problems",
+    "requirement_name",
+    "scores_problems",
+    "show",
+    "speed_problems",
+    "unknown_fields",
+]

@@ -15,9 +15,12 @@ fetched from elsewhere)::
     assets/site.css, site.js   the templates' companions (templates: site/templates/)
 
 Layers: :mod:`~odmd_bench.leaderboard.site.data` builds ``leaderboard.json`` from the
-entries, each re-scored; :mod:`~odmd_bench.leaderboard.site.pages` renders the files
-(numbers by :func:`~odmd_bench.leaderboard.render.format_number`, as ``LEADERBOARD.md``);
-:mod:`~odmd_bench.leaderboard.site.figures` draws. Nothing but the CLI imports this package.
+entries, each re-scored; :mod:`~odmd_bench.leaderboard.site.pages` renders the pages from
+the Jinja2 templates of ``site/templates/``, autoescaped (numbers by
+:func:`~odmd_bench.leaderboard.render.format_number`, as ``LEADERBOARD.md``);
+:mod:`~odmd_bench.leaderboard.site.downloads` makes the downloads (a CSV per board);
+:mod:`~odmd_bench.leaderboard.site.figures` draws. Jinja2 is the ``[site]`` extra; without it
+:func:`render_site` is a usage error naming it. Nothing but the CLI imports this package.
 Two builds of one board give byte-identical files.
 """
 
