@@ -173,9 +173,7 @@ def train_dbox(
     args += ["--cuda-graph"] if cuda_graph else []
     args += ["--out", str(out)]
     args += ["--resume"] if resume else []
-    # The kernel setting changes the weights' last bits: part of the command when it does.
-    kernels = ["ODMD_BENCH_ONEDNN=1"] if os.environ.get("ODMD_BENCH_ONEDNN") == "1" else []
-    command = shlex.join(kernels + args)
+    command = shlex.join(args)
     result = train(
         config,
         steps,

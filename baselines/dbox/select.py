@@ -173,7 +173,7 @@ def verify_scores(selection: Selection, val_sets: Mapping[str, Examples]) -> int
     """
     import torch
     from odmd_bench_baselines.dbox import load_model
-    from odmd_bench_baselines.dbox.train import validation_scores
+    from odmd_bench_baselines.dbox.recipe import validation_scores
 
     expected = selection.candidates["all"][0].record.get("val_sets")
     if list(val_sets) != expected:
