@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Any
 
 import click
-from odmd_bench_baselines.dbox import CONFIGS
+from odmd_bench_baselines.dbox.weights import CONFIGS
 
 from odmd_bench import BENCHMARKS
 from odmd_bench.cli.options import FiniteFloatRange, data_dir_option

@@ -120,7 +120,7 @@ def run(
     data: str,
     cuda_graph: bool,
 ) -> TrainResult:
-    """The training loop of :func:`train`, in each process, its options checked."""
+    """The training loop of :func:`.train.train`, in each process, its options checked."""
     dev = ctx.device
     if data == "auto":
         data = "device" if dev.type == "cuda" else "host"
