@@ -13,18 +13,15 @@ Each case runs with 1 torch thread and with 2 (this machine's cores):
   L1 loss, backward, Adam.
 - ``test_inference``: forward pass on 1,000 examples (input already built), no
   gradients.
-- ``impl="onednn"`` is ``DBox.forward`` (and its hand-written backward) with every
-  product on oneDNN's kernel (``ODMD_BENCH_ONEDNN=1``); ``impl="plain"`` is the same
-  code on plain torch products (``ODMD_BENCH_ONEDNN=0``, as on a torch build without
-  oneDNN); ``impl="auto"`` is what ships: plain products, for training and inference
-  (:func:`odmd_bench_baselines.dbox.model.use_onednn`; ``extra_info["auto_picks"]``
-  says which; before issue 38 a per-process timed probe picked the training kernel);
-  ``impl="reference"`` is
+- ``impl="plain"`` is ``DBox.forward`` (and its hand-written backward, :mod:`.kernels`),
+  what ships: every product a plain torch product; ``impl="reference"`` is
   :func:`odmd_bench_baselines.dbox.model.reference_forward`, the original release's forward
   written as it was (all four gate blocks computed twice per observation, per-step
-  slices, ``cat`` before every FC layer) with autograd's backward. All are measured in
-  the same run on the same data, so ``median(reference) / median(impl)`` is the
-  speed-up.
+  slices, ``cat`` before every FC layer) with autograd's backward. Both are measured in
+  the same run on the same data, so ``median(reference) / median(plain)`` is the
+  speed-up. (Until issue 44 an ``onednn`` case measured an opt-in path through oneDNN's
+  private operator, and ``auto`` the default; ``bench_dbox_before_after.py`` compares
+  an earlier commit's cases with this one's.)
 - ``test_ratio`` prints the ratios from interleaved timings in one process.
 
 The machines are shared: compare numbers from one run only.
@@ -34,22 +31,19 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Iterator
-from typing import TypeVar
 
 import numpy as np
 import pytest
 
 torch = pytest.importorskip("torch")
 
-from odmd_bench_baselines.dbox import model as model_module  # noqa: E402
-from odmd_bench_baselines.dbox.model import DBox, make_inputs, reference_forward  # noqa: E402
-from odmd_bench_baselines.dbox.train import make_optimizer  # noqa: E402
+from odmd_bench_baselines.dbox.formulations import make_inputs  # noqa: E402
+from odmd_bench_baselines.dbox.model import DBox, reference_forward  # noqa: E402
+from odmd_bench_baselines.dbox.recipe import make_optimizer  # noqa: E402
 
 import odmd_bench  # noqa: E402
 
-IMPLS = ("onednn", "plain", "auto", "reference")
-SETTING = {"onednn": "1", "plain": "0", "auto": "auto", "reference": "auto"}
-T = TypeVar("T")
+IMPLS = ("plain", "reference")
 THREADS = (1, 2)
 
 
@@ -67,21 +61,6 @@ def _forward(model: DBox, impl: str) -> Callable[[torch.Tensor], torch.Tensor]:
     return model
 
 
-def _as(impl: str, fn: Callable[[], T]) -> Callable[[], T]:
-    """``fn``, run with the kernel setting of ``impl``."""
-
-    def run() -> T:
-        with model_module.kernels(SETTING[impl]):
-            return fn()
-
-    return run
-
-
-def _auto_picks(train: bool) -> str:
-    with model_module.kernels("auto"):
-        return "onednn" if model_module.use_onednn(train) else "plain"
-
-
 def _train_step(model: DBox, impl: str) -> Callable[[], float]:
     forward = _forward(model, impl)
     optimizer = make_optimizer(model)
@@ -96,7 +75,7 @@ def _train_step(model: DBox, impl: str) -> Callable[[], float]:
         optimizer.step()
         return float(loss.item())
 
-    return _as(impl, step)
+    return step
 
 
 def _inference(model: DBox, impl: str) -> Callable[[], torch.Tensor]:
@@ -107,16 +86,14 @@ def _inference(model: DBox, impl: str) -> Callable[[], torch.Tensor]:
         with torch.no_grad():
             return forward(x)
 
-    return _as(impl, run)
+    return run
 
 
 @pytest.mark.parametrize("impl", IMPLS)
 def test_train_step(benchmark, threads: int, impl: str) -> None:  # type: ignore[no-untyped-def]
     step = _train_step(DBox(generator=torch.Generator().manual_seed(0)), impl)
     step()  # warm-up (allocator, first-call costs)
-    benchmark.extra_info.update(
-        threads=threads, impl=impl, batch=512, torch=torch.__version__, auto_picks=_auto_picks(True)
-    )
+    benchmark.extra_info.update(threads=threads, impl=impl, batch=512, torch=torch.__version__)
     loss = benchmark.pedantic(step, rounds=15, iterations=1)
     assert np.isfinite(loss)
 
@@ -125,9 +102,7 @@ def test_train_step(benchmark, threads: int, impl: str) -> None:  # type: ignore
 def test_inference(benchmark, threads: int, impl: str) -> None:  # type: ignore[no-untyped-def]
     run = _inference(DBox(generator=torch.Generator().manual_seed(0)), impl)
     run()
-    benchmark.extra_info.update(
-        threads=threads, impl=impl, examples=1000, torch=torch.__version__, auto_picks=_auto_picks(False)
-    )
+    benchmark.extra_info.update(threads=threads, impl=impl, examples=1000, torch=torch.__version__)
     out = benchmark.pedantic(run, rounds=20, iterations=1)
     assert out.shape == (1000,)
 
@@ -139,7 +114,7 @@ def test_ratio(threads: int) -> None:
         "train step": {impl: _train_step(model, impl) for impl in IMPLS},
         "inference 1000": {impl: _inference(model, impl) for impl in IMPLS},
     }
-    for (name, fns), train in zip(cases.items(), (True, False), strict=True):
+    for name, fns in cases.items():
         times: dict[str, list[float]] = {impl: [] for impl in IMPLS}
         for fn in fns.values():
             fn()
@@ -150,8 +125,5 @@ def test_ratio(threads: int) -> None:
                 times[impl].append(time.perf_counter() - t0)
         ms = {impl: float(np.median(t)) * 1e3 for impl, t in times.items()}
         ratios = ", ".join(f"{i} {ms[i]:.1f} ms ({ms['reference'] / ms[i]:.2f}x)" for i in IMPLS[:-1])
-        picks = _auto_picks(train)
-        print(
-            f"\n{name}, {threads} thread(s): reference {ms['reference']:.1f} ms; {ratios}; auto picks {picks}"
-        )
+        print(f"\n{name}, {threads} thread(s): reference {ms['reference']:.1f} ms; {ratios}")
         assert all(v > 0 for v in ms.values())

@@ -36,8 +36,9 @@ def main() -> None:
     args = parser.parse_args()
 
     import torch
-    from odmd_bench_baselines.dbox.model import make_inputs
-    from odmd_bench_baselines.dbox.weights import _load, resolve_weights
+    from odmd_bench_baselines.dbox.choice import resolve_weights
+    from odmd_bench_baselines.dbox.formulations import make_inputs
+    from odmd_bench_baselines.dbox.loading import _load
 
     from odmd_bench.leaderboard import audit as au
 

@@ -19,16 +19,12 @@ import pytest
 torch = pytest.importorskip("torch")
 
 from odmd_bench_baselines import dbox  # noqa: E402
-from odmd_bench_baselines.dbox import model as model_module  # noqa: E402
+from odmd_bench_baselines.dbox import kernels as model_module  # noqa: E402
 from odmd_bench_baselines.dbox import weights as weights_module  # noqa: E402
-from odmd_bench_baselines.dbox.model import (  # noqa: E402
-    DBox,
-    checkpoint_shapes,
-    make_inputs,
-    predict_depth,
-    reference_forward,
-)
-from odmd_bench_baselines.dbox.train import CONFIGS, learning_rate, train  # noqa: E402
+from odmd_bench_baselines.dbox.formulations import make_inputs, predict_depth  # noqa: E402
+from odmd_bench_baselines.dbox.model import DBox, checkpoint_shapes, reference_forward  # noqa: E402
+from odmd_bench_baselines.dbox.recipe import learning_rate  # noqa: E402
+from odmd_bench_baselines.dbox.train import CONFIGS, train  # noqa: E402
 
 import odmd_bench  # noqa: E402
 from odmd_bench.data.examples import Examples  # noqa: E402

@@ -17,7 +17,7 @@ import pytest
 torch = pytest.importorskip("torch")
 
 from odmd_bench_baselines.dbox import device_data  # noqa: E402
-from odmd_bench_baselines.dbox.model import make_inputs  # noqa: E402
+from odmd_bench_baselines.dbox.formulations import make_inputs  # noqa: E402
 from odmd_bench_baselines.dbox.train import train  # noqa: E402
 from test_dbox_distributed import _args, _final, _rel_diff, _tiny_val, _torchrun  # noqa: E402
 
@@ -176,7 +176,7 @@ def _steps_eager(
     model: torch.nn.Module, batches: list[tuple[torch.Tensor, torch.Tensor]], rates: list[float]
 ) -> torch.optim.Optimizer:
     """Plain training steps (the loop without a graph) with a fresh optimizer, returned."""
-    from odmd_bench_baselines.dbox.train import make_optimizer
+    from odmd_bench_baselines.dbox.recipe import make_optimizer
 
     opt = make_optimizer(model)
     for (x, y), rate in zip(batches, rates, strict=True):
@@ -193,7 +193,7 @@ def test_the_graphed_steps_warm_up_is_undone() -> None:
     """The step a CUDA graph replays, run eagerly: the warm-up leaves no trace in the weights."""
     from odmd_bench_baselines.dbox.graphs import GraphedStep, plain_optimizer_state
     from odmd_bench_baselines.dbox.model import DBox
-    from odmd_bench_baselines.dbox.train import make_optimizer
+    from odmd_bench_baselines.dbox.recipe import make_optimizer
 
     cpu = torch.device("cpu")
     source = device_data.DeviceBatches("odmd", "both", "rel", 0, cpu)

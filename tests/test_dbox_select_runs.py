@@ -14,8 +14,8 @@ torch = pytest.importorskip("torch")
 
 from odmd_bench_baselines.dbox import load_model  # noqa: E402
 from odmd_bench_baselines.dbox.model import checkpoint_shapes  # noqa: E402
+from odmd_bench_baselines.dbox.recipe import validation_scores  # noqa: E402
 from odmd_bench_baselines.dbox.select import select_runs, write_selection  # noqa: E402
-from odmd_bench_baselines.dbox.train import validation_scores  # noqa: E402
 
 import odmd_bench  # noqa: E402
 from odmd_bench import DataError, UsageError  # noqa: E402

@@ -29,26 +29,26 @@ Importing this package does not import torch; the functions do.
 
 from __future__ import annotations
 
+from odmd_bench_baselines.dbox.choice import (
+    SELECTIONS,
+    Z_ONLY_BENCHMARKS,
+    Z_ONLY_RATIO,
+    default_config,
+    is_z_only,
+    resolve_weights,
+    selection_benchmark,
+)
 from odmd_bench_baselines.dbox.configs import OBSERVATIONS
+from odmd_bench_baselines.dbox.loading import check_state_dict, load_failure, load_model
 from odmd_bench_baselines.dbox.method import OPTIONS, predict, predict_report, provenance
 from odmd_bench_baselines.dbox.weights import (
     CONFIGS,
     DEFAULT_WEIGHTS,
     MAX_WEIGHTS_BYTES,
-    SELECTIONS,
     VAL_BENCHMARK,
     WEIGHTS_DIR,
-    Z_ONLY_BENCHMARKS,
-    Z_ONLY_RATIO,
-    check_state_dict,
-    default_config,
-    is_z_only,
-    load_failure,
-    load_model,
     per_set_names,
     per_set_path,
-    resolve_weights,
-    selection_benchmark,
     shipped,
     verify_weights,
     weights_path,

@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Any
 
 import click
-from odmd_bench_baselines.dbox import CONFIGS
+from odmd_bench_baselines.dbox.weights import CONFIGS
 
 from odmd_bench import BENCHMARKS
 from odmd_bench.cli.options import FiniteFloatRange, data_dir_option
@@ -173,9 +173,7 @@ def train_dbox(
     args += ["--cuda-graph"] if cuda_graph else []
     args += ["--out", str(out)]
     args += ["--resume"] if resume else []
-    # The kernel setting changes the weights' last bits: part of the command when it does.
-    kernels = ["ODMD_BENCH_ONEDNN=1"] if os.environ.get("ODMD_BENCH_ONEDNN") == "1" else []
-    command = shlex.join(kernels + args)
+    command = shlex.join(args)
     result = train(
         config,
         steps,

@@ -1,8 +1,8 @@
-"""DBox's training configurations and the network's observation count (no torch).
+"""DBox's training configurations and the network's sizes (no torch).
 
-The lowest module of the DBox package: the weights registry (:mod:`.weights`), the
-network (:mod:`.model`) and the training loop (:mod:`.train`) all read these, and it
-imports none of them.
+The lowest module of the DBox package: the kernels (:mod:`.kernels`), the network
+(:mod:`.model`), the weights registry (:mod:`.weights`) and the training loop
+(:mod:`.train`) all read these, and it imports none of them.
 """
 
 from __future__ import annotations
@@ -13,6 +13,12 @@ from odmd_bench import UsageError
 
 #: Observations per example the network takes (its input layer is sized for 10).
 OBSERVATIONS = 10
+#: Numbers per observation: x, y, w, h, dcx, dcy, dcz.
+N_FEATURES = 7
+#: The LSTM's hidden size, the fully connected layers' width and their number (before the output).
+HIDDEN = 128
+FC_WIDTH = 256
+N_FC = 6
 
 
 @dataclass(frozen=True)
@@ -53,4 +59,4 @@ def get_config(name: str) -> TrainConfig:
     return CONFIGS[name]
 
 
-__all__ = ["CONFIGS", "OBSERVATIONS", "TrainConfig", "get_config"]
+__all__ = ["CONFIGS", "FC_WIDTH", "HIDDEN", "N_FC", "N_FEATURES", "OBSERVATIONS", "TrainConfig", "get_config"]

@@ -168,7 +168,7 @@ def network_batch(
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """DBox's input (B, n, 7) and target (B,), float32, of ``rows`` of a generated batch.
 
-    :func:`odmd_bench_baselines.dbox.model.make_inputs` for generated examples (every
+    :func:`odmd_bench_baselines.dbox.formulations.make_inputs` for generated examples (every
     box detected), in torch.
     """
     boxes = arrays["boxes"][rows].float()

@@ -7,17 +7,10 @@ import os
 from pathlib import Path
 
 import numpy as np
+from odmd_bench_baselines.dbox.choice import SELECTIONS, default_config, lateral_examples, resolve_weights
 from odmd_bench_baselines.dbox.configs import OBSERVATIONS
-from odmd_bench_baselines.dbox.weights import (
-    CONFIGS,
-    SELECTIONS,
-    _load,
-    default_config,
-    lateral_examples,
-    resolve_weights,
-    training_depth_range,
-    verify_weights,
-)
+from odmd_bench_baselines.dbox.loading import _load
+from odmd_bench_baselines.dbox.weights import CONFIGS, training_depth_range, verify_weights
 
 from odmd_bench import DataError, Examples, implied_depth
 from odmd_bench.methods import MethodOption
@@ -136,7 +129,7 @@ def predict_report(
         ``weights_sha256`` (the ``baseline`` command prints them).
     """
     from odmd_bench_baselines.dbox.distributed import resolve_device
-    from odmd_bench_baselines.dbox.model import predict_depth
+    from odmd_bench_baselines.dbox.formulations import predict_depth
 
     dev = resolve_device(device)  # a missing GPU is a usage error before the weights load
     if examples.n_obs != OBSERVATIONS:

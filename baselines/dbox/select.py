@@ -26,7 +26,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from odmd_bench_baselines.dbox import CONFIGS, per_set_path, verify_weights
+from odmd_bench_baselines.dbox.weights import CONFIGS, per_set_path, verify_weights
 
 from odmd_bench import DataError, Examples, StorageError, UsageError, atomic_write
 
@@ -172,8 +172,8 @@ def verify_scores(selection: Selection, val_sets: Mapping[str, Examples]) -> int
             its checkpoint does not give (every one named).
     """
     import torch
-    from odmd_bench_baselines.dbox import load_model
-    from odmd_bench_baselines.dbox.train import validation_scores
+    from odmd_bench_baselines.dbox.loading import load_model
+    from odmd_bench_baselines.dbox.recipe import validation_scores
 
     expected = selection.candidates["all"][0].record.get("val_sets")
     if list(val_sets) != expected:
