@@ -11,7 +11,7 @@ generated, the original release imported: not timed; the original release is nee
 - ``test_rank_groups_against_pairwise_draws``: the rank groups of the three committed
   boards, as ``leaderboard check`` forms them (each method's errors resampled once per
   set, :class:`~odmd_bench.evaluation.compare.Resampled`, each set's stream drawn once for
-  all the boards, :class:`~odmd_bench.evaluation.compare.SharedDraws`), against the same
+  all the boards, :class:`~odmd_bench.evaluation.resampling.SharedDraws`), against the same
   drawn again for each board, and against the reference that draws again for every pair
   (``compare_errors`` per comparison), in the same run; the groups must be the same.
 
@@ -32,8 +32,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from odmd_bench.evaluation.compare import TIE, SharedDraws, compare_errors
+from odmd_bench.evaluation.compare import TIE, compare_errors
 from odmd_bench.evaluation.parse import parse_predictions
+from odmd_bench.evaluation.resampling import SharedDraws
 from odmd_bench.evaluation.rows import Rows
 from odmd_bench.leaderboard import collect
 from odmd_bench.leaderboard.ranking import RANK_CONFIDENCE, RANK_RESAMPLES, RANK_SEED, rank_groups
