@@ -351,6 +351,7 @@ def record_problems(root: str | os.PathLike[str], result: Mapping[str, Any]) -> 
     return problems
 
 
+# The names of the audit's other rooms (and of the engine) are importable from here, as before.
 __all__ = [
     "BENCHMARK",
     "BOOTSTRAP",
