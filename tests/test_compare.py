@@ -165,7 +165,7 @@ def test_shared_draws_give_bit_for_bit_what_drawing_again_gives(
     n_resamples: int, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """Boards with sets of one name and size (the leaderboard's) draw each stream once."""
-    from odmd_bench.evaluation import compare
+    from odmd_bench.evaluation import resampling as compare
 
     monkeypatch.setattr(compare, "_BLOCK_BYTES", 16 * 300 * 250 * 2)  # blocks of 500 resamples
     drawn: list[int] = []

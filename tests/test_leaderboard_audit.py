@@ -27,6 +27,7 @@ from odmd_bench import leaderboard as lb
 from odmd_bench import methods
 from odmd_bench.cli.main import cli
 from odmd_bench.errors import UsageError
+from odmd_bench.evaluation import resampling
 from odmd_bench.leaderboard import audit as au
 from odmd_bench.leaderboard import audit_check as ac
 from odmd_bench.leaderboard.audit_files import audit_path, read_audits, shape_problems
@@ -484,7 +485,7 @@ def test_the_p_value_range_holds_every_p_a_perturbation_within_the_bounds_gives(
     rtol = 1e-3  # large, so that the range is not a point
     margins = ac.statistic_margins(committed, fresh, rtol)
     up, down = margins, ({s: -v for s, v in margins[0].items()}, -margins[1])
-    counts, counts_all = au._exceedances(committed, fresh, np.random.default_rng(0), 499, (up, down))
+    counts, counts_all = resampling.exceedances(committed, fresh, np.random.default_rng(0), 499, (up, down))
     low = np.array([*(counts[s][0] for s in "ab"), counts_all[0]])
     high = np.array([*(counts[s][1] for s in "ab"), counts_all[1]])
     assert (high > low).any()

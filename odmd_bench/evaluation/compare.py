@@ -17,25 +17,37 @@ The verdict is "A better" or "B better" only when the interval excludes 0 *and*
 ``p < 1 - confidence``; otherwise "not distinguishable". The test's smallest p-value is
 ``1 / (1 + resamples)``: settings where that is not below ``1 - confidence`` could never
 find a difference, however large, so they are refused (:func:`resolution_problem`)
-rather than answered "not distinguishable" beside an interval far from 0. Every set draws from its own
-random stream, made from ``seed`` and the set's name, so a set's result does not depend
-on which other sets are compared, and the same call gives the same numbers everywhere.
+rather than answered "not distinguishable" beside an interval far from 0. Every set draws
+from its own random stream, made from ``seed`` and the set's name: a set's result does not
+depend on which other sets are compared, and a call gives the same numbers everywhere.
 The leaderboard forms its rank groups with :class:`Resampled`: the comparison of
-:func:`compare_errors`, its draws made once for every pair of methods (and, kept in
-:class:`SharedDraws`, once for every board of the same sets).
+:func:`compare_errors`, its draws made once for every pair of methods (and once for every
+board of the same sets). The draws, p-values and intervals are the resampling engine's
+(:mod:`odmd_bench.evaluation.resampling`); this module makes the verdicts.
 """
 
 from __future__ import annotations
 
 import os
-import zlib
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
 import numpy as np
 
 from odmd_bench.errors import UsageError, ValidationError
+from odmd_bench.evaluation.resampling import (  # the engine; the names with noqa stay importable from here
+    MAX_RESAMPLES,  # noqa: F401
+    SharedDraws,
+    minimum_resamples,  # noqa: F401
+    named_stream,
+    paired_draws,
+    paired_means,
+    percentile_interval,
+    resolution_problem,
+    sign_flip_p,
+    smallest_p,  # noqa: F401
+)
 from odmd_bench.evaluation.result import EvaluationResult
 from odmd_bench.evaluation.scoring import evaluate
 from odmd_bench.inputs.source import Source
@@ -43,60 +55,6 @@ from odmd_bench.inputs.source import Source
 A_BETTER = "A better"
 B_BETTER = "B better"
 TIE = "not distinguishable"
-
-#: Resamples are drawn this many at a time, to bound memory (chunk x N indices).
-_CHUNK = 250
-#: :class:`Resampled` multiplies the draws of this many bytes at once (counts and signs).
-_BLOCK_BYTES = 64 * 2**20
-#: The most resamples a comparison draws (p-values to 1e-6; two float64 arrays of 8 MB).
-MAX_RESAMPLES = 1_000_000
-
-
-def smallest_p(n_resamples: int) -> float:
-    """The smallest p-value the sign-flip test can give with ``n_resamples`` flips."""
-    return 1 / (1 + n_resamples)
-
-
-def minimum_resamples(confidence: float) -> int:
-    """The fewest resamples whose smallest p-value is below ``1 - confidence`` (the test's threshold).
-
-    Examples:
-        >>> minimum_resamples(0.95), minimum_resamples(0.99), minimum_resamples(0.9999)
-        (19, 99, 10000)
-    """
-    alpha = 1.0 - confidence
-    n = max(1, int(1 / alpha) - 1)
-    while smallest_p(n) >= alpha:  # the same comparison as the verdict's, float for float
-        n += 1
-    while n > 1 and smallest_p(n - 1) < alpha:
-        n -= 1
-    return n
-
-
-def resolution_problem(n_resamples: int, confidence: float) -> str | None:
-    r"""Why a comparison with these settings could never find a difference (None: it can).
-
-    The verdict needs ``p < 1 - confidence`` and ``p`` is at least ``1 / (1 + n_resamples)``:
-    when that floor is not below the threshold, every verdict would be "not distinguishable"
-    whatever the interval says, and a gate resting on it could never fail.
-
-    Examples:
-        >>> resolution_problem(2000, 0.95) is None
-        True
-        >>> print(resolution_problem(10, 0.95).replace(": ", ":\n").replace("; ", ";\n"))
-        10 resamples at confidence 0.95 can never find a difference:
-        the test's smallest p-value, 1/(1 + 10) = 0.0909, is not below 1 - confidence = 0.05;
-        use at least 19 resamples or a lower confidence
-    """
-    alpha = 1.0 - confidence
-    if smallest_p(n_resamples) < alpha:
-        return None
-    return (
-        f"{n_resamples} resamples at confidence {confidence:g} can never find a difference: the test's "
-        f"smallest p-value, 1/(1 + {n_resamples}) = {smallest_p(n_resamples):.3g}, is not below "
-        f"1 - confidence = {alpha:.3g}; use at least {minimum_resamples(confidence)} resamples or a "
-        "lower confidence"
-    )
 
 
 @dataclass(frozen=True)
@@ -156,114 +114,19 @@ class Comparison:
         }
 
 
-def _rng(seed: int, name: str) -> np.random.Generator:
-    return np.random.default_rng([seed, zlib.crc32(name.encode())])
-
-
-def _chunks(n: int, n_resamples: int, rng: np.random.Generator) -> Iterator[tuple[np.ndarray, np.ndarray]]:
-    """The stream of draws, chunk by chunk: resampled indices (k, n) int32 and sign bits (k, n) int8.
-
-    The one definition of what a comparison draws (:func:`_draws` and :class:`Resampled`);
-    a bit of 1 keeps an example's sign, 0 flips it (:func:`_signs`).
-    """
-    for start in range(0, n_resamples, _CHUNK):
-        k = min(_CHUNK, n_resamples - start)
-        idx = rng.integers(0, n, size=(k, n), dtype=np.int32)
-        yield idx, rng.integers(0, 2, size=(k, n), dtype=np.int8)
-
-
-def _signs(bits: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
-    """Sign bits (0 or 1) as signs of -1.0 or +1.0, written to ``out`` when given."""
-    signs = np.multiply(bits, 2.0, out=out)
-    signs -= 1.0
-    return signs
-
-
-def _draws(d: np.ndarray, n_resamples: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-    """Bootstrap means and sign-flipped means of ``d``, each (n_resamples,)."""
-    n = d.shape[0]
-    boot = np.empty(n_resamples)
-    flip = np.empty(n_resamples)
-    start = 0
-    for idx, bits in _chunks(n, n_resamples, rng):
-        k = idx.shape[0]
-        boot[start : start + k] = d[idx].mean(axis=1)
-        flip[start : start + k] = _signs(bits) @ d / n
-        start += k
-    return boot, flip
-
-
-def _counted(n: int, n_resamples: int, rng: np.random.Generator) -> Iterator[tuple[np.ndarray, np.ndarray]]:
-    """:func:`_chunks` with each resample's indices counted: (k, n) draws of every example, and the sign bits."""
-    offsets = np.arange(_CHUNK)[:, None] * n
-    for idx, bits in _chunks(n, n_resamples, rng):
-        k = idx.shape[0]
-        yield np.bincount((idx + offsets[:k]).ravel(), minlength=k * n).reshape(k, n), bits
-
-
-class SharedDraws:
-    """The draws of :class:`Resampled` comparisons, made once for every set of one stream.
-
-    A set's stream depends only on the seed, the set's name, its size and the number of
-    resamples (:func:`_rng`), never on the errors: boards of the same sets (odmd-paper
-    and odmd-v1 have the same names and sizes) draw the same one. The first
-    :class:`Resampled` given this object draws a stream and keeps it, compact (the
-    counts as the smallest unsigned integers that hold them, the sign bits packed: 6.75
-    MB for 2,000 resamples of 3,000 examples); the next ones read it back, the same
-    numbers, so that their results are bit for bit those of drawing again.
-    """
-
-    def __init__(self) -> None:
-        self._kept: dict[tuple[int, str, int, int], list[tuple[np.ndarray, np.ndarray]]] = {}
-
-    def counted(
-        self, seed: int, name: str, n: int, n_resamples: int
-    ) -> Iterator[tuple[np.ndarray, np.ndarray]]:
-        """What :func:`_counted` yields for this stream, drawn the first time only."""
-        key = (seed, name, n, n_resamples)
-        kept = self._kept.get(key)
-        if kept is not None:
-            for counts, packed in kept:
-                yield counts, np.unpackbits(packed, axis=1, count=n)
-            return
-        chunks = []
-        for counts, bits in _counted(n, n_resamples, _rng(seed, name)):
-            compact = counts.astype(np.min_scalar_type(counts.max()))
-            chunks.append((compact, np.packbits(bits, axis=1)))
-            yield counts, bits
-        self._kept[key] = chunks  # only a stream drawn to its end is kept
-
-
 def _summary(
-    n: int,
-    mean_a: float,
-    mean_b: float,
-    observed: float,
-    boot: np.ndarray,
-    flip: np.ndarray,
-    confidence: float,
+    n: int, a: float, b: float, diff: float, boot: np.ndarray, flip: np.ndarray, confidence: float
 ) -> PairedDifference:
     alpha = 1.0 - confidence
-    lo, hi = np.quantile(boot, [alpha / 2, 1 - alpha / 2])
-    # Ties with the observed statistic count as "as extreme" (up to rounding).
-    tol = 1e-12 * max(1.0, abs(observed))
-    p = (1 + int(np.count_nonzero(np.abs(flip) >= abs(observed) - tol))) / (1 + flip.shape[0])
+    lo, hi = percentile_interval(boot, confidence)
+    p = sign_flip_p(flip, diff)
     if hi < 0 and p < alpha:
         verdict = A_BETTER
     elif lo > 0 and p < alpha:
         verdict = B_BETTER
     else:
         verdict = TIE
-    return PairedDifference(
-        n=n,
-        mean_a=mean_a,
-        mean_b=mean_b,
-        difference=observed,
-        ci_low=float(lo),
-        ci_high=float(hi),
-        p_value=float(p),
-        verdict=verdict,
-    )
+    return PairedDifference(n, a, b, diff, float(lo), float(hi), float(p), verdict)
 
 
 def compare_errors(
@@ -309,7 +172,7 @@ def compare_errors(
     for s in errors_a:
         ea, eb = _errors(s, errors_a[s], errors_b[s])
         d = ea - eb
-        boot, flip = _draws(d, n_resamples, _rng(seed, s))
+        boot, flip = paired_draws(d, n_resamples, named_stream(seed, s))
         per_set[s] = _summary(
             ea.size, float(ea.mean()), float(eb.mean()), float(d.mean()), boot, flip, confidence
         )
@@ -416,8 +279,8 @@ class Resampled:
     :func:`compare_errors` draws, for each set, a stream that depends on the seed and the
     set's name only: the resampled examples and the flipped signs are the same whatever
     the two methods are. Here each method's bootstrap and sign-flip means are computed
-    once on that stream (products of the resample counts and the signs with every
-    method's errors at once), and a pair's means of differences are the differences of
+    once on that stream (:func:`~odmd_bench.evaluation.resampling.paired_means`: products
+    of the resample counts and the signs with every method's errors at once), and a pair's means of differences are the differences of
     its two methods' means. :meth:`compare` so gives what :func:`compare_errors` gives
     for the pair (the same draws, none fewer), up to the order of floating-point
     additions (about 1e-15, relative); it is what the leaderboard ranks with.
@@ -466,37 +329,7 @@ class Resampled:
         for s in sets:
             e = np.stack(_errors(s, *(errors[m][s] for m in methods)))  # (M, N)
             self._errors[s] = e
-            n = e.shape[1]
-            if draws is None:
-                counted = _counted(n, n_resamples, _rng(seed, s))
-            else:
-                counted = draws.counted(seed, s, n, n_resamples)
-            self._boot[s], self._flip[s] = self._means(e, counted)
-
-    def _means(
-        self, e: np.ndarray, counted: Iterator[tuple[np.ndarray, np.ndarray]]
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """Every method's bootstrap and sign-flip means of ``e`` (M, N): each (M, n_resamples)."""
-        m, n = e.shape
-        boot = np.empty((m, self.n_resamples))
-        flip = np.empty((m, self.n_resamples))
-        # The draws of several chunks go into one product: fewer, larger calls into BLAS
-        # (whose idle threads spin between calls, which costs much on a busy machine).
-        rows = min(self.n_resamples, max(1, _BLOCK_BYTES // (16 * n * _CHUNK)) * _CHUNK)
-        counts = np.empty((rows, n))  # how often each example is drawn in each resample
-        signs = np.empty((rows, n))
-        start = drawn = 0
-        for chunk, bits in counted:
-            k = chunk.shape[0]
-            counts[drawn : drawn + k] = chunk
-            _signs(bits, out=signs[drawn : drawn + k])
-            drawn += k
-            if drawn == rows or start + drawn == self.n_resamples:
-                block = slice(start, start + drawn)
-                boot[:, block] = e @ counts[:drawn].T / n
-                flip[:, block] = e @ signs[:drawn].T / n
-                start, drawn = start + drawn, 0
-        return boot, flip
+            self._boot[s], self._flip[s] = paired_means(e, n_resamples, seed, s, draws)
 
     def compare(self, a: str, b: str) -> Comparison:
         """Method ``a`` (A) against method ``b`` (B), as :func:`compare_errors` compares them."""

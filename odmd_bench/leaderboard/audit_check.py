@@ -61,7 +61,9 @@ from typing import Any
 import numpy as np
 
 from odmd_bench.errors import OdmdError
+from odmd_bench.evaluation.resampling import exceedances, holm, keyed_stream, p_value
 from odmd_bench.leaderboard.audit_files import audit_json, audit_path, read_audits
+from odmd_bench.leaderboard.audit_stats import PERMUTATION_KEY, Collected, describe_test
 from odmd_bench.leaderboard.diff import diff_json
 from odmd_bench.leaderboard.specs import rounded
 
@@ -103,28 +105,28 @@ def statistic_margins(
     return out, np.mean(list(out.values()), axis=0)
 
 
-def pvalue_ranges(found: Any, n_permutations: int, rtol: float = DEPTH_RTOL) -> tuple[np.ndarray, np.ndarray]:
+def pvalue_ranges(
+    found: Collected, n_permutations: int, rtol: float = DEPTH_RTOL
+) -> tuple[np.ndarray, np.ndarray]:
     """The lowest and highest p-value another processor may give: two ``(E, sets + 1)`` arrays.
 
-    ``found`` is a :class:`~odmd_bench.leaderboard.audit.Collected`; the columns are its
-    sets in order, then the mean over sets, as :func:`~odmd_bench.leaderboard.audit.assess`
+    ``found`` is a :class:`~odmd_bench.leaderboard.audit_stats.Collected`; the columns are its
+    sets in order, then the mean over sets, as :func:`~odmd_bench.leaderboard.audit_stats.assess_with`
     orders them for Holm; ``n_permutations`` is the record's.
     """
-    from odmd_bench.leaderboard import audit as au
-
     sets = list(found.header["sets"])
     margins = statistic_margins(found.committed, found.fresh, rtol)
     up, down = margins, ({s: -v for s, v in margins[0].items()}, -margins[1])
-    counts, counts_all = au._exceedances(
+    counts, counts_all = exceedances(
         found.committed,
         found.fresh,
-        au._stream(found.header["seed"], au._PERMUTATION_KEY),
+        keyed_stream(found.header["seed"], PERMUTATION_KEY),
         n_permutations,
         (up, down),
     )
     low = np.column_stack([*(counts[s][0] for s in sets), counts_all[0]])
     high = np.column_stack([*(counts[s][1] for s in sets), counts_all[1]])
-    return (1 + low) / (n_permutations + 1), (1 + high) / (n_permutations + 1)
+    return p_value(low, n_permutations), p_value(high, n_permutations)
 
 
 @dataclass
@@ -144,7 +146,7 @@ class Comparison:
     largest_share: float = 0.0
 
 
-def compare(doc: Mapping[str, Any], found: Any, name: str, rtol: float = DEPTH_RTOL) -> Comparison:
+def compare(doc: Mapping[str, Any], found: Collected, name: str, rtol: float = DEPTH_RTOL) -> Comparison:
     """Compare the recorded audit ``doc`` with its re-run ``found`` (a ``Collected`` of the same entries).
 
     Entries the record re-ran and that cannot be re-run here are a note, not a difference,
@@ -194,7 +196,7 @@ def compare(doc: Mapping[str, Any], found: Any, name: str, rtol: float = DEPTH_R
             row = kept_as_recorded[row["method"]] = {**theirs}
         rows.append(row)
     kept = [k for k, i in enumerate(found.audited) if found.rows[i]["method"] in here]
-    found = au.Collected(
+    found = Collected(
         found.header,
         rows,
         [found.audited[k] for k in kept],
@@ -208,7 +210,7 @@ def compare(doc: Mapping[str, Any], found: Any, name: str, rtol: float = DEPTH_R
     n_permutations = au.permutations_for(n_tests)
     again = {
         **again,
-        "test": au.describe_test(n_tests, n_permutations),
+        "test": describe_test(n_tests, n_permutations),
         "entries": [kept_as_recorded.get(e["method"], e) for e in again["entries"]],
     }
     out.problems += diff_json(audit_json(_exact_part(doc)), audit_json(_exact_part(again)), name)
@@ -221,8 +223,8 @@ def compare(doc: Mapping[str, Any], found: Any, name: str, rtol: float = DEPTH_R
         for t in [*e["sets"].values(), e["generated_mean"]]
     ]
     low, high = pvalue_ranges(found, n_permutations, rtol)
-    adjusted_low = au.holm(np.concatenate([low.ravel(), others]))[: low.size].reshape(low.shape)
-    adjusted_high = au.holm(np.concatenate([high.ravel(), others]))[: high.size].reshape(high.shape)
+    adjusted_low = holm(np.concatenate([low.ravel(), others]))[: low.size].reshape(low.shape)
+    adjusted_high = holm(np.concatenate([high.ravel(), others]))[: high.size].reshape(high.shape)
     for k, i in enumerate(found.audited):
         method = found.rows[i]["method"]
         mine = next(e for e in again["entries"] if e["method"] == method)

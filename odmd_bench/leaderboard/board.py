@@ -16,7 +16,8 @@ import numpy as np
 from odmd_bench.data.examples import Examples
 from odmd_bench.data.registry import get_benchmark, set_file
 from odmd_bench.errors import DataError, OdmdError, ValidationError
-from odmd_bench.evaluation.compare import PairedDifference, SharedDraws
+from odmd_bench.evaluation.compare import PairedDifference
+from odmd_bench.evaluation.resampling import SharedDraws
 from odmd_bench.evaluation.scoring import EvaluationResult
 from odmd_bench.leaderboard.entry import Entry
 from odmd_bench.leaderboard.files import discover, read_entry, read_predictions_bytes

@@ -8,7 +8,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
-from odmd_bench.evaluation.compare import TIE, PairedDifference, Resampled, SharedDraws
+from odmd_bench.evaluation.compare import TIE, PairedDifference, Resampled
+from odmd_bench.evaluation.resampling import SharedDraws
 
 #: Settings of the paired comparison that forms rank groups.
 RANK_RESAMPLES = 2000
@@ -72,7 +73,7 @@ def rank_groups(
         seed: its seed.
         confidence: its confidence level.
         draws: the draws kept for, and from, the other boards
-            (:class:`~odmd_bench.evaluation.compare.SharedDraws`; the same groups).
+            (:class:`~odmd_bench.evaluation.resampling.SharedDraws`; the same groups).
 
     Returns:
         The rows, best first.
