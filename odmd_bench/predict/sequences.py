@@ -25,12 +25,11 @@ empty) becomes ``detected = False``.
 Reading is strict in the way the predictions reader is: a file with a problem is refused
 as a whole (:class:`~odmd_bench.errors.ValidationError`) naming every kind of problem
 with its count and first lines. A clean file (no quote, no blank line, the header's
-number of fields on every line, numbers as most tools write them) is read with
-whole-array operations (:mod:`odmd_bench.inputs.table`), its numbers converted
-correctly rounded without a call per cell (:mod:`odmd_bench.inputs.decimals`); anything
-else goes to a row-by-row reader that locates each problem, with Python's ``float``. Both
-give each number cell the float ``float`` gives it, so ``repr``-written numbers come
-back exactly. A UTF-8 byte-order mark, CRLF line ends, UTF-16 with a byte-order mark and
+number of fields on every line, numbers as most tools write them) of at least
+:data:`~odmd_bench.inputs.table.PANDAS_BYTES` is read by pandas' C parser
+(:mod:`odmd_bench.inputs.table`); anything else goes to a row-by-row reader that
+locates each problem, with Python's ``float``. Both give each number cell the float
+``float`` gives it, so ``repr``-written numbers come back exactly. A UTF-8 byte-order mark, CRLF line ends, UTF-16 with a byte-order mark and
 gzip-compressed files are accepted (:mod:`odmd_bench.predict.sequence_rows` reads the rows).
 """
 
@@ -55,6 +54,7 @@ from odmd_bench.errors import UsageError, ValidationError
 from odmd_bench.inputs.problems import SHOWN, Problems, show
 from odmd_bench.inputs.records import decode
 from odmd_bench.inputs.source import MAX_SEQUENCES_BYTES, cap_advice, input_limit, read_source, stdin_bytes
+from odmd_bench.inputs.table import PANDAS_BYTES
 from odmd_bench.predict.checks import fraction_boxes_problem
 from odmd_bench.predict.convention import (
     Order,
@@ -295,7 +295,7 @@ def read_sequences(
     if parsed is None:
         raise ValidationError(title, problems.lines())
     header, cols = parsed
-    rows = fast_rows(data, header, cols)
+    rows = fast_rows(data, header, cols) if len(data) >= PANDAS_BYTES else None
     if rows is None:
         rows = careful_rows(data.decode("utf-8") if text is None else text, header, cols, problems)
     if not len(rows.lines) and not problems:
