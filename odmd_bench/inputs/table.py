@@ -124,7 +124,7 @@ def _read(data: bytes, width: int, cols: list[int], text: int) -> Any:
         return None  # a cell that is no number, a line too long, text not UTF-8
 
 
-def _round_trip(version: str) -> dict[str, str]:
+def _round_trip(version: str) -> dict[str, Any]:
     """``read_csv`` options that convert every decimal to the nearest float64, as ``float`` does.
 
     pandas before 3.1 reads with a faster parser that can miss by one unit in the last
