@@ -270,3 +270,25 @@ def test_predict_reads_and_solves_without_pandas(tmp_path: Path) -> None:
     )
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path)
     assert r.returncode == 0, r.stderr
+
+
+def test_the_predictions_reader_reads_uncertainty_columns_alike_by_pandas(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """A large predictions file's uncertainty columns (pandas) read as a small one's (``float``)."""
+    from odmd_bench.evaluation import parse, rows
+
+    r = random.Random(5)
+    lines = ["split,set,index,depth,depth_lo,depth_hi,level,depth_std"]
+    for i in range(2000):
+        d = r.uniform(0.5, 40)
+        lo = r.choice([repr(d * 0.9), f"{d * 0.9:.3e}", "+0.25", "0.", ".25E-1", "0." + "1" * 30])
+        lines.append(f"test,normal,{i},{d!r},{lo},{d * 1.1!r},0.9,{d * 0.05!r}")
+    data = ("\n".join(lines) + "\n").encode()
+    small = parse.parse_predictions(data)
+    monkeypatch.setattr(rows, "PANDAS_BYTES", 0)
+    large = parse.parse_predictions(data)
+    assert small.uncertainty and not small.problems
+    for c, values in small.uncertainty.items():
+        assert values.tobytes() == large.uncertainty[c].tobytes(), c
+    assert table.number_column(["1", "", "2"]) is None and table.number_column(["1e", "2"]) is None

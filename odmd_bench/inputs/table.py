@@ -24,8 +24,9 @@ from typing import Any
 import numpy as np
 
 #: Files of fewer bytes are read row by row (the caller decides): the row reader reads
-#: them in less time than importing pandas takes (about 0.5 s of CPU; the row reader
-#: reads about 1 MB of a sequences file in 0.2 s).
+#: them in about the time importing pandas takes. Measured (``read_sequences`` in a fresh
+#: process, CPU seconds, AMD EPYC): 3.1 MB (20,000 rows) 0.77 row by row, 0.83 with
+#: pandas' import; 7.8 MB 1.44 against 0.74; 0.8 MB 0.44 against 0.73.
 PANDAS_BYTES = 4 << 20
 _SPACES = (b" ", b"\t", b"\x0b", b"\x0c")  # what pandas' number parser skips around a number
 
@@ -135,6 +136,33 @@ def _round_trip(version: str) -> dict[str, Any]:
     return {"float_precision": "round_trip"} if (major, minor) < (3, 1) else {}
 
 
+def number_column(cells: list[str]) -> np.ndarray | None:
+    """(n,) float64 of cells that hold only digits, ``.``, ``e``, ``E``, ``+`` and ``-``, by pandas.
+
+    The predictions reader's uncertainty columns of a large file (the caller checks the
+    characters: on them pandas, the readers' number pattern and ``float`` agree). None
+    where a cell is no number (``""``, ``"1e"``, ``"1.2.3"``).
+    """
+    import pandas as pd
+
+    try:
+        frame = pd.read_csv(
+            io.StringIO("\n".join(cells)),
+            header=None,
+            names=[0],
+            dtype={0: np.float64},
+            na_filter=False,
+            skip_blank_lines=False,
+            engine="c",
+            low_memory=False,
+            **_round_trip(pd.__version__),
+        )
+    except (ValueError, pd.errors.ParserError):
+        return None
+    values = frame[0].to_numpy(dtype=np.float64)
+    return values if values.size == len(cells) else None
+
+
 def _numbers_plain(
     data: bytes,
     header_end: int,
@@ -218,4 +246,4 @@ def factorize(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.repeat(run_codes, np.diff(runs, append=n)), uniques
 
 
-__all__ = ["PANDAS_BYTES", "Columns", "clean_columns", "factorize"]
+__all__ = ["PANDAS_BYTES", "Columns", "clean_columns", "factorize", "number_column"]
