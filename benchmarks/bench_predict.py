@@ -8,15 +8,16 @@ Run (one core: keep OpenBLAS to one thread):
 The file: 100,000 sequences of 10 observations (1,000,000 rows, about 90 MB) made from
 ODMD examples (preset odmd, perturbation both, seed 0), 2% of the boxes missed (and the
 few boxes of width or height <= 0 made by the box noise missed too), numbers written with ``repr`` precision (:func:`~odmd_bench.predict.sequences.format_sequences`).
-Rates are sequences per second = 100,000 / best time:
+Rates are sequences per second = 100,000 / best time (``benchmarks/reader_before_after.py``
+times the reader of an earlier commit against this one on the same file):
 
 * ``test_parse``: :func:`read_sequences` on the file's bytes, strict checks and
   conversion to examples included (the vectorised path of a well-formed file);
 * ``test_rows``: the reading alone (:func:`~odmd_bench.predict.sequence_rows.fast_rows`:
-  the clean file's cells to arrays, numbers correctly rounded, names factorized), and
-  ``test_rows_pandas_reference``, the same work as the reader before it did it (its byte
-  checks, pandas' C parser with its options, ``factorize``): the reference of the same
-  run, its ratio printed;
+  the byte checks, pandas' C parser, numbers correctly rounded, names factorized and
+  stripped), and ``test_rows_pandas_reference``, a bare ``read_csv`` of the same file with
+  the reader's options and ``factorize``: the reference of the same run (what the
+  checks around pandas cost), its ratio printed;
 * ``test_parse_careful``: the same file with one blank line, which sends it through the
   row-by-row reader that locates problems (what a file with a problem costs);
 * ``test_solve``: Box_LS (``predict_report``, fills and fallbacks included) on the
@@ -40,8 +41,8 @@ N = 100_000
 SIZE = (640, 480)
 
 
-@pytest.fixture(scope="module")
-def data() -> bytes:
+def sequences_file() -> bytes:
+    """The benchmark's sequences file (module docstring), as bytes."""
     ex = odmd_bench.generate(N, preset="odmd", perturbation="both", rng=0)
     det = np.random.default_rng(0).random(ex.detected.shape) >= 0.02
     # Box noise can make a tiny box's width negative, which no detector writes (and the
@@ -49,6 +50,11 @@ def data() -> bytes:
     det &= (ex.boxes[:, :, 2] > 0) & (ex.boxes[:, :, 3] > 0)
     ex = dataclasses.replace(ex, detected=det, boxes=np.where(det[..., None], ex.boxes, 0.0))
     return format_sequences(ex).encode()
+
+
+@pytest.fixture(scope="module")
+def data() -> bytes:
+    return sequences_file()
 
 
 @pytest.fixture(scope="module")
@@ -92,10 +98,10 @@ def test_rows(benchmark, data: bytes) -> None:
 
 
 def test_rows_pandas_reference(benchmark, data: bytes) -> None:
-    """The reading ``fast_rows`` does, as the reader before it did it: pandas' C parser.
+    """The reading ``fast_rows`` does, bare: pandas' C parser.
 
-    Its byte-level checks (no quote, every line's commas), ``read_csv`` with the options
-    it used, the names factorized and stripped, the number columns gathered.
+    A few byte-level checks (no quote, the commas), ``read_csv`` with the reader's
+    options, the names factorized and stripped, the number columns gathered.
     """
     pd = pytest.importorskip("pandas")
     import io
@@ -132,9 +138,7 @@ def test_rows_pandas_reference(benchmark, data: bytes) -> None:
     names, numbers = benchmark.pedantic(read, rounds=5, iterations=1)
     assert numbers.shape == (10 * N, len(numeric))
     ref = benchmark.stats.stats.min
-    benchmark.extra_info["reference"] = (
-        "the pandas reader before: byte checks, read_csv (C engine), factorize"
-    )
+    benchmark.extra_info["reference"] = "a bare pandas reader: byte checks, read_csv (C engine), factorize"
     if "ours" in _ROWS:
         benchmark.extra_info["ours_over_pandas"] = _ROWS["ours"] / ref
         print(f"\nthe strict reader's fast path takes {_ROWS['ours'] / ref:.2f} times pandas' time")

@@ -1,4 +1,4 @@
-"""The fast path of the strict CSV reading: decimals converted without a call per cell, clean files."""
+"""The fast path of the strict CSV reading (pandas on a clean file): numbers as ``float`` gives them, clean files."""
 
 from __future__ import annotations
 
@@ -12,33 +12,13 @@ import numpy as np
 import pytest
 
 import odmd_bench
-from odmd_bench.inputs import decimals, table
+from odmd_bench.inputs import table
 from odmd_bench.inputs.problems import Problems
 from odmd_bench.predict import sequence_rows, sequences
 
 
-def _parse(cells: list[str]) -> tuple[np.ndarray, np.ndarray]:
-    """parse_decimals on ``cells`` laid out like a CSV line after a header."""
-    body = b"h" * 32 + b"".join(c.encode() + b"," for c in cells)
-    lens = np.array([len(c.encode()) for c in cells], dtype=np.int64)
-    end = 32 + np.cumsum(lens + 1) - 1
-    start = end - lens
-    dot = np.array([c.rfind(".") for c in cells], dtype=np.int64)
-    dot = np.where(dot >= 0, start + dot, end)
-    return decimals.parse_decimals(np.frombuffer(body, dtype=np.uint8), start, end, dot)
-
-
-def _assert_as_float(cells: list[str], at_least: float) -> None:
-    """Every cell converted is bit for bit ``float``'s; at least a fraction ``at_least`` converted."""
-    values, done = _parse(cells)
-    want = np.array([float(c) for c in cells])
-    wrong = np.flatnonzero(done & (values.view(np.uint64) != want.view(np.uint64)))
-    assert not wrong.size, [(cells[i], values[i], want[i]) for i in wrong[:5]]
-    assert done.mean() >= at_least, done.mean()
-
-
 def _random_cells(n: int, seed: int) -> list[str]:
-    """Decimal strings of every shape the fast form has, and some it has not."""
+    """Decimal strings of every shape the readers take: any length, sign, point and exponent."""
     r = random.Random(seed)
     out = []
     for _ in range(n):
@@ -46,53 +26,143 @@ def _random_cells(n: int, seed: int) -> list[str]:
         fraction = "".join(r.choice("0123456789") for _ in range(r.randint(0, 26)))
         sign = r.choice(["", "", "-", "+"])
         cell = sign + digits + ("." + fraction if r.random() < 0.8 or not digits else fraction)
-        out.append(cell if any(ch.isdigit() for ch in cell) else cell + "0")
+        cell = cell if any(ch.isdigit() for ch in cell) else cell + "0"
+        if r.random() < 0.2:
+            cell += r.choice("eE") + r.choice(["", "+", "-"]) + str(r.randint(0, 330))
+        out.append(cell)
     return out
 
 
-@pytest.fixture(params=[True, False], ids=["extended", "float64"])
-def precision(request: pytest.FixtureRequest, monkeypatch: pytest.MonkeyPatch) -> bool:
-    """Both conversions: extended precision (where the platform has it) and plain float64."""
-    if request.param and not decimals._EXTENDED:
-        pytest.skip("no 64-bit-significand longdouble here")
-    monkeypatch.setattr(decimals, "use_extended", request.param)
-    return bool(request.param)
-
-
-def test_repr_written_numbers_convert_exactly(precision: bool) -> None:
-    rng = np.random.default_rng(0)
-    x = rng.standard_normal(200_000) * 10.0 ** rng.integers(-4, 16, 200_000)
-    x = np.concatenate((x, rng.random(50_000), rng.integers(-(10**6), 10**6, 50_000).astype(float)))
-    _assert_as_float([repr(float(v)) for v in x], 0.9 if precision else 0.25)
-
-
-def test_decimal_strings_of_every_length_convert_as_float_does(precision: bool) -> None:
-    _assert_as_float(_random_cells(300_000, 1), 0.2 if precision else 0.1)
-
-
-def test_decimals_halfway_between_two_floats_are_left_to_float(precision: bool) -> None:
-    """Exact midpoints, and decimals a unit in the 19th digit either side of one."""
-    rng = np.random.default_rng(2)
+def _halfway_cells(n: int, seed: int) -> list[str]:
+    """Exact midpoints between two float64, and decimals a unit in the 19th digit either side."""
+    rng = np.random.default_rng(seed)
     cells = ["9007199254740993", "9007199254740993.0", "-9007199254740995", "0.5", "2.5"]
-    for v in rng.random(3000) * 10.0 ** rng.integers(-3, 6, 3000):
+    for v in rng.random(n) * 10.0 ** rng.integers(-3, 6, n):
         a = float(v)
         mid = (decimal.Decimal(a) + decimal.Decimal(float(np.nextafter(a, np.inf)))) / 2
+        cells.append(format(mid, "f"))
         for rounding in (decimal.ROUND_DOWN, decimal.ROUND_UP, decimal.ROUND_HALF_EVEN):
             context = decimal.Context(prec=19, rounding=rounding)
             cells.append(format(context.plus(mid), "f"))
-    _assert_as_float(cells, 0.0)
-    values, done = _parse(["9007199254740993"])
-    assert not done[0] or values[0] == 9007199254740992.0
+    return cells
 
 
-def test_cells_not_in_the_fast_form_are_marked() -> None:
-    cells = ["1e5", "+1.5", "1.2.3", "1-2", "- 1", ".", "-", "1,5", "0x10", "inf", "nan", "1_000", "١٢"]
-    _, done = _parse(cells)
-    assert not done.any()
-    _, done = _parse(["-0.0", "0", "-.5", "5.", "00012.5000"])
-    assert done.all()
-    values, _ = _parse(["-0.0"])
-    assert np.signbit(values[0])
+_EDGES = [
+    "-0.0", "0", "-.5", "5.", "00012.5000", "1e5", "1E-5", "+1.5", "4.9e-324", "2.4703282292062327e-324",
+    "2.4703282292062328e-324", "2.2250738585072011e-308", "2.2250738585072014e-308", "1.7976931348623157e308",
+    "1.7976931348623158e308", "0." + "0" * 400 + "1", "1" * 400, "0.1" + "0" * 300 + "1", "123456789012345678901234567890",
+    "0.30000000000000004", "9007199254740993.000000000000000000001", "1e-400",
+]  # fmt: skip
+
+
+def test_clean_files_convert_every_number_as_float_does() -> None:
+    """The pandas path gives each cell bit for bit what Python's ``float`` gives it."""
+    rng = np.random.default_rng(0)
+    x = rng.standard_normal(100_000) * 10.0 ** rng.integers(-300, 300, 100_000)
+    cells = [repr(float(v)) for v in x] + _random_cells(200_000, 1) + _halfway_cells(3000, 2) + _EDGES
+    cells = [c for c in cells if abs(float(c)) != np.inf]
+    data = ("s,v\n" + "".join(f"a,{c}\n" for c in cells)).encode()
+    found = table.clean_columns(data, 2, [[1]], 0)
+    assert found is not None and found.n == len(cells)
+    got = found.numbers[0][:, 0]
+    want = np.array([float(c) for c in cells])
+    wrong = np.flatnonzero(got.view(np.uint64) != want.view(np.uint64))
+    assert not wrong.size, [(cells[i], got[i], want[i]) for i in wrong[:5]]
+    assert np.signbit(got[cells.index("-0.0")])
+
+
+def test_cells_the_row_reader_takes_otherwise_are_not_clean() -> None:
+    """Spaces around a number, infinities, ``nan`` and what is no number leave the fast path."""
+    for cell in [
+        " 1",
+        "1 ",
+        "\t1",
+        "\x0b1",
+        "inf",
+        "-Infinity",
+        "1e400",
+        "nan",
+        "NaN",
+        "1_0",
+        "0x10",
+        "1e",
+        ".",
+        "١٢",
+    ]:
+        data = f"s,v\na,2\nb,{cell}\nc,3\n".encode()
+        assert table.clean_columns(data, 2, [[1]], 0) is None, cell
+    spaced = table.clean_columns(b"s,v\n a ,1\nb b,2\n", 2, [[1]], 0)
+    assert (
+        spaced is not None and spaced.values == ("a", "b b") and spaced.numbers[0].tolist() == [[1.0], [2.0]]
+    )
+
+
+def test_clean_files_and_the_row_reader_agree_on_random_files() -> None:
+    """Files of random cells (numbers, text, spaces, odd bytes): either not clean, or read alike."""
+    r = random.Random(7)
+    alphabet = [
+        "1",
+        "0.5",
+        "-2e3",
+        "+.5",
+        "",
+        " ",
+        "\t",
+        "nan",
+        "inf",
+        "a",
+        "é",
+        "\x1a",
+        "\x1f",
+        ",",
+        "\r\n",
+        "\n",
+        "e",
+    ]
+    head = "sequence,observation,x1,y1,x2,y2,cam_x,cam_y,cam_z,note\n"
+    agree = 0
+    for _ in range(400):
+        lines = []
+        for i in range(r.randint(1, 6)):
+            cells = [r.choice(["s", " s", "t"]), str(i)] + [
+                r.choice(["3", "4.25", "-1e-3", "7."])
+                if r.random() < 0.97
+                else "".join(r.choices(alphabet, k=2))
+                for _ in range(7)
+            ]
+            lines.append(
+                ",".join(cells) + "," + ("".join(r.choices(alphabet, k=2)) if r.random() < 0.3 else "n")
+            )
+        text = head + "\n".join(lines) + r.choice(["", "\n"])
+        careful, problems, fast = _both_problems(text)
+        if fast is not None:
+            assert not problems, (text, problems.lines())
+            _assert_same(careful, fast)
+            agree += 1
+    assert agree > 20
+
+
+def _both_problems(text: str) -> tuple[sequence_rows.Rows, Problems, sequence_rows.Rows | None]:
+    data = text.encode()
+    header, cols = sequence_rows.header_columns(data, Problems()) or ([], {})
+    problems = Problems()
+    careful = sequence_rows.careful_rows(text, header, cols, problems)
+    return careful, problems, sequence_rows.fast_rows(data, header, cols)
+
+
+def test_large_files_take_the_fast_path_small_files_the_row_reader(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Past :data:`~odmd_bench.inputs.table.PANDAS_BYTES` a clean file is read by pandas, alike."""
+    text = sequences.format_sequences(odmd_bench.generate(500, perturbation="both", rng=4))
+    calls = []
+    monkeypatch.setattr(sequences, "fast_rows", lambda *a: calls.append(1) or sequence_rows.fast_rows(*a))
+    careful = sequences.read_sequences(text.encode(), (640, 480))
+    assert not calls and len(text) < table.PANDAS_BYTES
+    monkeypatch.setattr(sequences, "PANDAS_BYTES", 0)
+    fast = sequences.read_sequences(text.encode(), (640, 480))
+    assert calls
+    for name in ("boxes", "camera", "depth", "observation_depth", "detected"):
+        a, b = getattr(fast.examples(), name), getattr(careful.examples(), name)
+        assert a.tobytes() == b.tobytes(), name
 
 
 def _both(text: str) -> tuple[sequence_rows.Rows, sequence_rows.Rows | None]:
@@ -202,14 +272,23 @@ def test_predict_reads_and_solves_without_pandas(tmp_path: Path) -> None:
     assert r.returncode == 0, r.stderr
 
 
-def test_a_big_endian_machine_reads_the_same_by_float(monkeypatch: pytest.MonkeyPatch) -> None:
-    """The words are little-endian: elsewhere every cell goes to ``float`` and names row by row."""
-    text = sequences.format_sequences(odmd_bench.generate(30, rng=5), names=[f"s{i}" for i in range(30)])
-    want = _both(text)[1]
-    monkeypatch.setattr(decimals, "LITTLE_ENDIAN", False)
-    monkeypatch.setattr(table, "LITTLE_ENDIAN", False)
-    _, done = _parse(["1.5"])
-    assert not done.any()
-    got = _both(text)[1]
-    assert want is not None and got is not None
-    _assert_same(want, got)
+def test_the_predictions_reader_reads_uncertainty_columns_alike_by_pandas(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """A large predictions file's uncertainty columns (pandas) read as a small one's (``float``)."""
+    from odmd_bench.evaluation import parse, rows
+
+    r = random.Random(5)
+    lines = ["split,set,index,depth,depth_lo,depth_hi,level,depth_std"]
+    for i in range(2000):
+        d = r.uniform(0.5, 40)
+        lo = r.choice([repr(d * 0.9), f"{d * 0.9:.3e}", "+0.25", "0.", ".25E-1", "0." + "1" * 30])
+        lines.append(f"test,normal,{i},{d!r},{lo},{d * 1.1!r},0.9,{d * 0.05!r}")
+    data = ("\n".join(lines) + "\n").encode()
+    small = parse.parse_predictions(data)
+    monkeypatch.setattr(rows, "PANDAS_BYTES", 0)
+    large = parse.parse_predictions(data)
+    assert small.uncertainty and not small.problems
+    for c, values in small.uncertainty.items():
+        assert values.tobytes() == large.uncertainty[c].tobytes(), c
+    assert table.number_column(["1", "", "2"]) is None and table.number_column(["1e", "2"]) is None

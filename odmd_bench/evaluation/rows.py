@@ -21,12 +21,14 @@ import numpy as np
 from odmd_bench.data.registry import BENCHMARKS, SPLITS
 from odmd_bench.evaluation.kinds import MAX_ABS_DEPTH, NONFINITE, OUT_OF_RANGE, TOO_LARGE
 from odmd_bench.evaluation.uncertainty import UNCERTAINTY_COLUMNS
-from odmd_bench.inputs.decimals import parse_decimals
 from odmd_bench.inputs.problems import SHOWN, Problems, clip, closest, show
 from odmd_bench.inputs.records import NONFINITE_CELL, NUMBER
+from odmd_bench.inputs.table import PANDAS_BYTES, number_column
 
 _INT = re.compile(r"[+-]?[0-9]+")
 _is_int, _is_float = _INT.fullmatch, NUMBER.fullmatch
+#: The text of a column of numbers (:func:`_number_columns`).
+_NUMBER_CHARS = re.compile(r"[0-9.eE+-]*")
 _NAN = float("nan")
 _BENCHMARK_NAMES = tuple(sorted(BENCHMARKS))
 #: Characters of text :meth:`Rows.add_clean` splits into cells at once (about 200,000
@@ -49,6 +51,7 @@ class Rows:
         self.depth, self.index_ok = array("d"), array("b")
         self.nonpositive: dict[int, list[tuple[int, str]]] = {}
         self.n = 0
+        self.bulk = False  # a large file (add_clean): its number columns read by pandas
         #: The uncertainty columns present, and their cells as numbers (NaN: not a number).
         self.extra = tuple((c, cols[c]) for c in UNCERTAINTY_COLUMNS if c in cols)
         self.extra_values = {c: array("d") for c, _ in self.extra}
@@ -117,6 +120,7 @@ class Rows:
         """
         if self.n or start >= len(text) or not text.isascii() or text.find('"', start) >= 0:
             return False
+        self.bulk = len(text) - start >= PANDAS_BYTES
         crlf = text.find("\r", start) >= 0
         if crlf and text.count("\r", start) != text.count("\r\n", start):
             return False  # a lone \r ends a line too: left to the csv module
@@ -189,7 +193,7 @@ class Rows:
                     extra[c] = np.full(n, float(column[0]))
                 else:
                     varied.append((c, i))
-            numbers = _number_columns(chars, cells, width, [i for _, i in varied]) if varied else None
+            numbers = _number_columns(cells, width, [i for _, i in varied], self.bulk) if varied else None
             if varied and numbers is None:
                 return False
             for k, (c, _) in enumerate(varied):
@@ -233,37 +237,35 @@ class Rows:
         return float("nan")
 
 
-def _number_columns(chars: np.ndarray, cells: list[str], width: int, cols: list[int]) -> np.ndarray | None:
+def _number_columns(cells: list[str], width: int, cols: list[int], bulk: bool) -> np.ndarray | None:
     """``(len(cols), n)`` the number cells of columns ``cols`` of a clean block, or None if one is no number.
 
-    The uncertainty columns, parsed as the CSV readers' fast path parses numbers
-    (:func:`~odmd_bench.inputs.decimals.parse_decimals`, bit for bit Python's ``float``,
-    whole columns at once); a cell in another form (or too near the block's start for
-    it) goes through the reader's number pattern and ``float``, one by one. (A call per
-    cell for three more columns would nearly double the time a file takes to read.)
-    ``cells`` are the block's cells, in the order of ``chars``.
+    The uncertainty columns, whole columns at once: a column whose text holds only digits,
+    ``.``, ``e``, ``E``, ``+`` and ``-`` (one pattern match of the column joined) is a
+    column of numbers in the reader's pattern exactly where ``float`` takes every cell
+    (on those characters the two grammars are one), and numpy converts it in one pass in
+    C, each cell as ``float`` does; in a file of at least
+    :data:`~odmd_bench.inputs.table.PANDAS_BYTES`, pandas' C parser does
+    (:func:`~odmd_bench.inputs.table.number_column`, several times faster). (A pattern
+    match per cell for three more columns would nearly double the time a file takes to
+    read.) ``cells`` are the block's cells, row after row.
     """
-    seps = np.flatnonzero((chars == 44) | (chars == 10))  # the end of every cell but the last
-    ends = np.append(seps, chars.size)
-    starts = np.empty_like(ends)
-    starts[0] = 0
-    starts[1:] = seps + 1
-    dots_at = np.flatnonzero(chars == 46)
-    out = np.empty((len(cols), len(cells) // width))
+    n = len(cells) // width
+    out = np.empty((len(cols), n))
     for k, col in enumerate(cols):
-        start, end = starts[col::width], ends[col::width]
-        if dots_at.size:
-            first_dot = dots_at[np.minimum(np.searchsorted(dots_at, start), dots_at.size - 1)]
-            dot = np.where((first_dot >= start) & (first_dot < end), first_dot, end)
-        else:
-            dot = end
-        values, done = parse_decimals(chars, start, end, dot)
-        for i in np.flatnonzero(~done).tolist():
-            cell = cells[i * width + col]
-            if not _is_float(cell):
+        column = cells[col::width]
+        if _NUMBER_CHARS.fullmatch("".join(column)) is None:
+            return None
+        if bulk:  # a large file: pandas' C parser
+            values = number_column(column)
+            if values is None:
                 return None
-            values[i] = float(cell)
-        out[k] = values
+            out[k] = values
+            continue
+        try:
+            out[k] = np.array(column, dtype=np.float64)  # each cell by float
+        except ValueError:  # "", "1e", "1.2.3": a cell no number
+            return None
     return out
 
 

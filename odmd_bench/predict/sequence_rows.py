@@ -1,6 +1,6 @@
 """The rows of a sequences CSV (:mod:`odmd_bench.predict.sequences`): parsed, checked, grouped.
 
-Two readers give the same :class:`Rows`: whole-array reading of a clean file
+Two readers give the same :class:`Rows`: pandas' C parser for a clean file
 (:mod:`odmd_bench.inputs.table`), and a row-by-row reader with :mod:`csv` that locates
 each problem, for anything else. Then every rule on cell values is checked
 vectorised, and the rows are grouped into sequences ordered by observation. Every

@@ -25,12 +25,11 @@ empty) becomes ``detected = False``.
 Reading is strict in the way the predictions reader is: a file with a problem is refused
 as a whole (:class:`~odmd_bench.errors.ValidationError`) naming every kind of problem
 with its count and first lines. A clean file (no quote, no blank line, the header's
-number of fields on every line, numbers as most tools write them) is read with
-whole-array operations (:mod:`odmd_bench.inputs.table`), its numbers converted
-correctly rounded without a call per cell (:mod:`odmd_bench.inputs.decimals`); anything
-else goes to a row-by-row reader that locates each problem, with Python's ``float``. Both
-give each number cell the float ``float`` gives it, so ``repr``-written numbers come
-back exactly. A UTF-8 byte-order mark, CRLF line ends, UTF-16 with a byte-order mark and
+number of fields on every line, numbers as most tools write them) of at least
+:data:`~odmd_bench.inputs.table.PANDAS_BYTES` is read by pandas' C parser
+(:mod:`odmd_bench.inputs.table`); anything else goes to a row-by-row reader that
+locates each problem, with Python's ``float``. Both give each number cell the float
+``float`` gives it, so ``repr``-written numbers come back exactly. A UTF-8 byte-order mark, CRLF line ends, UTF-16 with a byte-order mark and
 gzip-compressed files are accepted (:mod:`odmd_bench.predict.sequence_rows` reads the rows).
 """
 
@@ -55,7 +54,8 @@ from odmd_bench.errors import UsageError, ValidationError
 from odmd_bench.inputs.problems import SHOWN, Problems, show
 from odmd_bench.inputs.records import decode
 from odmd_bench.inputs.source import MAX_SEQUENCES_BYTES, cap_advice, input_limit, read_source, stdin_bytes
-from odmd_bench.predict.checks import fraction_boxes_problem
+from odmd_bench.inputs.table import PANDAS_BYTES
+from odmd_bench.predict.checks import depth_like, fraction_boxes_problem, outside_image, pose_like
 from odmd_bench.predict.convention import (
     Order,
     Orientation,
@@ -295,7 +295,7 @@ def read_sequences(
     if parsed is None:
         raise ValidationError(title, problems.lines())
     header, cols = parsed
-    rows = fast_rows(data, header, cols)
+    rows = fast_rows(data, header, cols) if len(data) >= PANDAS_BYTES else None
     if rows is None:
         rows = careful_rows(data.decode("utf-8") if text is None else text, header, cols, problems)
     if not len(rows.lines) and not problems:
@@ -392,68 +392,12 @@ def read_sequences(
         source=where,
         ignored_columns=ignored,
         attrs=attrs,
-        warnings=_outside_image(rows.numbers[:, 1:5], rows.lines, size)
-        + _pose_like(ignored)
-        + _depth_like(ignored, "depth" in header)
+        warnings=outside_image(rows.numbers[:, 1:5], rows.lines, size)
+        + pose_like(ignored)
+        + depth_like(ignored, "depth" in header)
         + unchecked,
         turn=turn,
         oriented=rows.orientation is not None,
-    )
-
-
-def _pose_like(ignored: tuple[str, ...]) -> tuple[str, ...]:
-    """One warning naming the ignored columns whose names look like an orientation or a pose."""
-    found = []
-    for name in ignored:
-        low = name.lower()
-        if low.startswith(("q", "rot")) or any(w in low for w in ("quat", "roll", "pitch", "yaw")):
-            found.append(name)
-    if not found:
-        return ()
-    many = len(found) > 1
-    return (
-        f"column{'s' if many else ''} {', '.join(show(n) for n in found)} look{'' if many else 's'} like a "
-        f"camera orientation but {'are' if many else 'is'} not read: the orientation is read from cam_qx, "
-        "cam_qy, cam_qz, cam_qw (a unit quaternion, x y z w, rotating camera coordinates into the fixed "
-        "frame; --quaternion-order wxyz and --orientation world-to-camera for the other conventions; "
-        "docs/own-data.md)",
-    )
-
-
-def _depth_like(ignored: tuple[str, ...], has_depth: bool) -> tuple[str, ...]:
-    """A warning where no ``depth`` column is read but an ignored one is named much like it."""
-    if has_depth:
-        return ()
-    import difflib
-
-    near = difflib.get_close_matches("depth", [n.lower() for n in ignored], n=1, cutoff=0.6)
-    if not near:
-        return ()
-    name = next(n for n in ignored if n.lower() == near[0])
-    return (
-        f"column {show(name)} is not read: did you mean `depth` (the true depth in metres, which the "
-        "estimates are scored against)? Without a column named depth no error is given",
-    )
-
-
-def _outside_image(corners: np.ndarray, lines: np.ndarray, size: tuple[float, float]) -> tuple[str, ...]:
-    """A warning when detected boxes lie wholly outside the image: a wrong image size, likely.
-
-    Box_LS notices only a wrong aspect ratio (it uses ratios of box sizes), but every
-    method that reads positions or sizes relative to the image does, DBox first among them.
-    """
-    w, h = size
-    x1, y1, x2, y2 = corners.T
-    with np.errstate(invalid="ignore"):  # NaN: a missed detection, never outside
-        outside = (x2 <= 0) | (x1 >= w) | (y2 <= 0) | (y1 >= h)
-    if not outside.any():
-        return ()
-    n_boxes = int(np.isfinite(corners).all(axis=1).sum())
-    first = ", ".join(str(x) for x in lines[outside][:3].tolist())
-    return (
-        f"{int(outside.sum())} of {n_boxes} boxes lie wholly outside the {w:g} x {h:g} image "
-        f"(line{'s' if outside.sum() > 1 else ''} {first}{', ...' if outside.sum() > 3 else ''}): "
-        "is the image size that of the images the boxes were drawn in (width, height, pixels)?",
     )
 
 
