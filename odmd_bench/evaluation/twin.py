@@ -16,7 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from odmd_bench.data.registry import set_file
+from odmd_bench.data.loading import read_split
+from odmd_bench.data.registry import get_benchmark, set_file
 from odmd_bench.errors import OdmdError
 from odmd_bench.evaluation.metrics import percent_error
 from odmd_bench.evaluation.result import EvaluationResult
@@ -66,14 +67,12 @@ def twin_fit(result: EvaluationResult, data_dir: str | os.PathLike[str] | None =
     folder (it is never generated or imported for this), it cannot be loaded or scored
     against, or no set scored differs between the two (the robot sets are the same).
     """
-    from odmd_bench.data.store import load_split
-
     twin = TWINS.get(result.benchmark)
-    if twin is None or not set_file(twin, result.split, data_dir).is_file():
+    if twin is None or not set_file(get_benchmark(twin), result.split, data_dir).is_file():
         return None
     depths, examples = result.predictions, result.examples
     try:
-        other = load_split(result.split, twin, data_dir, sets=list(depths))
+        other = read_split(get_benchmark(twin), result.split, data_dir, sets=list(depths))
         names = tuple(
             s
             for s in other
