@@ -68,11 +68,12 @@ def twin_fit(result: EvaluationResult, data_dir: str | os.PathLike[str] | None =
     against, or no set scored differs between the two (the robot sets are the same).
     """
     twin = TWINS.get(result.benchmark)
-    if twin is None or not set_file(get_benchmark(twin), result.split, data_dir).is_file():
+    other_bench = get_benchmark(twin) if twin is not None else None
+    if other_bench is None or not set_file(other_bench, result.split, data_dir).is_file():
         return None
     depths, examples = result.predictions, result.examples
     try:
-        other = read_split(get_benchmark(twin), result.split, data_dir, sets=list(depths))
+        other = read_split(other_bench, result.split, data_dir, sets=list(depths))
         names = tuple(
             s
             for s in other
