@@ -86,4 +86,4 @@ def twin_fit(result: EvaluationResult, data_dir: str | os.PathLike[str] | None =
     if not names:
         return None
     here = [result.sets[s]["percent_error"]["mean"] for s in names]
-    return TwinFit(result.benchmark, twin, names, float(np.mean(here)), float(np.mean(there)))
+    return TwinFit(result.benchmark, other_bench.name, names, float(np.mean(here)), float(np.mean(there)))
