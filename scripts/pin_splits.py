@@ -91,7 +91,7 @@ def pin_v1(originals: dict[tuple[str, str, str], Any], write_files: bool) -> dic
     # The metadata hashes are those of the sets as `generate` builds them.
     for split, entries in out["splits"].items():
         for set_name, entry in entries.items():
-            ex = build_set("odmd-v1", split, set_name)
+            ex = build_set(BENCHMARKS["odmd-v1"], split, set_name)
             h = _hashes(ex, set_name)
             if h["sha256"] != entry["sha256"]:
                 sys.exit(f"odmd-v1 {split} {set_name}: built set differs from the one pinned now; rerun")

@@ -419,7 +419,7 @@ def test_an_interrupt_that_something_swallows_still_ends_the_command_with_130(
 def paper_like(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
     import odmd_bench
     from odmd_bench.data.io import write_sets
-    from odmd_bench.data.registry import set_file
+    from odmd_bench.data.registry import get_benchmark, set_file
 
     d = tmp_path / "data"
     for k, split in enumerate(("val", "test")):
@@ -427,7 +427,7 @@ def paper_like(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
             s: odmd_bench.generate(40, rng=10 * k + i)
             for i, s in enumerate(("normal", "camera", "object", "robot"))
         }
-        write_sets(set_file("odmd-paper", split, d), sets)
+        write_sets(set_file(get_benchmark("odmd-paper"), split, d), sets)
     monkeypatch.setenv("ODMD_BENCH_DATA", str(d))
     return d
 

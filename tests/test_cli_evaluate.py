@@ -17,7 +17,7 @@ from click.testing import CliRunner
 import odmd_bench
 from odmd_bench.cli.main import cli
 from odmd_bench.data.io import write_sets
-from odmd_bench.data.registry import set_file
+from odmd_bench.data.registry import get_benchmark, set_file
 from odmd_bench.evaluation.predictions import write_predictions
 from odmd_bench.evaluation.report import PER_EXAMPLE_COLUMNS
 from odmd_bench.evaluation.scoring import evaluate
@@ -35,7 +35,7 @@ UNPINNED = (
 def data(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
     d = tmp_path / "data"
     sets = {s: odmd_bench.generate(N[s], perturbation="both", rng=i) for i, s in enumerate(SETS)}
-    write_sets(set_file("odmd-paper", "test", d), sets)
+    write_sets(set_file(get_benchmark("odmd-paper"), "test", d), sets)
     monkeypatch.setenv("ODMD_BENCH_DATA", str(d))
     return d
 
@@ -239,9 +239,10 @@ def test_evaluate_never_imports_torch_or_pandas(data: Path, tmp_path: Path) -> N
 
 
 def test_missing_generated_benchmark_is_generated_first(tmp_path: Path) -> None:
-    from odmd_bench.data.store import manifest
+    from odmd_bench.data.manifests import manifest
+    from odmd_bench.data.registry import get_benchmark
 
-    sizes = {s: manifest("odmd-v1")["splits"]["val"][s]["n"] for s in SETS}
+    sizes = {s: manifest(get_benchmark("odmd-v1"))["splits"]["val"][s]["n"] for s in SETS}
     p = tmp_path / "ones.csv"
     write_predictions(p, "val", {s: np.ones(n) for s, n in sizes.items()})
     env = {**os.environ, "ODMD_BENCH_DATA": str(tmp_path / "fresh")}

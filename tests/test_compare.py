@@ -10,7 +10,7 @@ import pytest
 import odmd_bench
 from odmd_bench import UsageError, ValidationError
 from odmd_bench.data.io import write_sets
-from odmd_bench.data.registry import set_file
+from odmd_bench.data.registry import get_benchmark, set_file
 from odmd_bench.evaluation.compare import (
     A_BETTER,
     B_BETTER,
@@ -222,7 +222,7 @@ def data(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
     d = tmp_path / "data"
     for k, split in enumerate(("val", "test")):
         sets = {s: odmd_bench.generate(40, rng=10 * k + i) for i, s in enumerate(SETS)}
-        write_sets(set_file("odmd-paper", split, d), sets)
+        write_sets(set_file(get_benchmark("odmd-paper"), split, d), sets)
     monkeypatch.setenv("ODMD_BENCH_DATA", str(d))
     return d
 

@@ -10,26 +10,27 @@ import pytest
 import odmd_bench
 from odmd_bench.data.hashing import content_sha256, set_arrays
 from odmd_bench.data.io import read_set
-from odmd_bench.data.registry import set_file
-from odmd_bench.data.store import build_set, ensure_generated, manifest
+from odmd_bench.data.manifests import manifest
+from odmd_bench.data.registry import get_benchmark, set_file
+from odmd_bench.data.store import build_set, ensure_generated
 from odmd_bench.outputs import atomic_write
 
 
 @pytest.mark.parametrize("split", ["val", "test"])
 def test_every_pinned_set_regenerates_to_its_hash(split) -> None:
-    entries = manifest("odmd-v1")["splits"][split]
+    entries = manifest(get_benchmark("odmd-v1"))["splits"][split]
     assert {k: e["n"] for k, e in entries.items()} == dict.fromkeys(
         ("normal", "camera", "object", "robot"), {"val": 2400, "test": 3000}[split]
     )
     for set_name, entry in entries.items():
-        ex = build_set("odmd-v1", split, set_name)
+        ex = build_set(get_benchmark("odmd-v1"), split, set_name)
         assert len(ex) == entry["n"]
         assert content_sha256(set_arrays(ex)) == entry["sha256"], f"{split} {set_name} changed"
 
 
 def test_generated_files_load_with_the_pinned_content(v1_data_dir) -> None:
     for split in ("val", "test"):
-        for set_name, entry in manifest("odmd-v1")["splits"][split].items():
+        for set_name, entry in manifest(get_benchmark("odmd-v1"))["splits"][split].items():
             ex = odmd_bench.load(split, set_name, data_dir=v1_data_dir)
             assert ex.attrs["content_sha256"] == entry["sha256"]
             assert ex.attrs["benchmark"] == "odmd-v1" and ex.attrs["split"] == split
@@ -56,7 +57,7 @@ def test_a_corrupt_file_is_detected_and_replaced(tmp_path) -> None:
     import h5py
 
     ensure_generated("odmd-v1", ["val"], tmp_path)
-    path = set_file("odmd-v1", "val", tmp_path)
+    path = set_file(get_benchmark("odmd-v1"), "val", tmp_path)
     with h5py.File(path, "r+") as f:
         f["camera/depth"][0] += 1e-9
     with pytest.raises(odmd_bench.DataError, match="corrupt"):
@@ -89,7 +90,7 @@ def test_interrupted_generation_leaves_nothing_half_written(tmp_path, monkeypatc
 
 def test_load_generates_a_missing_generated_benchmark(tmp_path) -> None:
     ex = odmd_bench.load("val", "robot", data_dir=tmp_path)
-    assert len(ex) == 2400 and set_file("odmd-v1", "val", tmp_path).exists()
+    assert len(ex) == 2400 and set_file(get_benchmark("odmd-v1"), "val", tmp_path).exists()
 
 
 @pytest.mark.parametrize(

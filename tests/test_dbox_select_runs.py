@@ -21,7 +21,7 @@ import odmd_bench  # noqa: E402
 from odmd_bench import DataError, UsageError  # noqa: E402
 from odmd_bench.cli.main import cli  # noqa: E402
 from odmd_bench.data.io import write_sets  # noqa: E402
-from odmd_bench.data.registry import set_file  # noqa: E402
+from odmd_bench.data.registry import get_benchmark, set_file  # noqa: E402
 
 SETS = ("normal", "perturb", "robot", "driving")
 
@@ -160,7 +160,7 @@ def test_usage_errors(two_runs: tuple[Path, Path], tmp_path: Path) -> None:
 def tiny_val(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> dict[str, odmd_bench.Examples]:
     """A small odms-detection val split in its own data folder (written, so not the pinned one)."""
     sets = {s: odmd_bench.generate(30, "odms", "both", rng=i) for i, s in enumerate(SETS)}
-    write_sets(set_file("odms-detection", "val", tmp_path / "data"), sets)
+    write_sets(set_file(get_benchmark("odms-detection"), "val", tmp_path / "data"), sets)
     monkeypatch.setenv("ODMD_BENCH_DATA", str(tmp_path / "data"))
     return odmd_bench.load_split("val", "odms-detection")
 

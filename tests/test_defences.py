@@ -212,11 +212,11 @@ def test_statistics_see_the_last_example() -> None:
 @pytest.fixture()
 def data(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
     from odmd_bench.data.io import write_sets
-    from odmd_bench.data.registry import set_file
+    from odmd_bench.data.registry import get_benchmark, set_file
 
     d = tmp_path / "data"
     sets = {s: odmd_bench.generate(4, rng=i) for i, s in enumerate(("normal", "camera", "object", "robot"))}
-    write_sets(set_file("odmd-paper", "test", d), sets)
+    write_sets(set_file(get_benchmark("odmd-paper"), "test", d), sets)
     monkeypatch.setenv("ODMD_BENCH_DATA", str(d))
     return d
 
@@ -294,18 +294,19 @@ def test_a_set_whose_array_or_attribute_changed_is_refused_on_load(tmp_path: Pat
 
 
 def test_a_set_that_is_not_its_pinned_version_is_named() -> None:
-    from odmd_bench.data.store import check_against_manifest, pin
+    from odmd_bench.data.manifests import check_against_manifest, pin
+    from odmd_bench.data.registry import get_benchmark
 
-    right = pin("odmd-v1", "test", "robot")["sha256"]
-    assert check_against_manifest("odmd-v1", "test", "robot", right) is None
+    right = pin(get_benchmark("odmd-v1"), "test", "robot")["sha256"]
+    assert check_against_manifest(get_benchmark("odmd-v1"), "test", "robot", right) is None
     wrong = ("0" if right[0] != "0" else "1") + right[1:]
-    said = check_against_manifest("odmd-v1", "test", "robot", wrong)
+    said = check_against_manifest(get_benchmark("odmd-v1"), "test", "robot", wrong)
     assert said == (
         f"odmd-v1 test robot: content SHA-256 {wrong[:16]}... differs from the pinned {right[:16]}... "
         "in splits/odmd-v1.json"
     )
     last = right[:-1] + ("0" if right[-1] != "0" else "1")  # the last digit too
-    assert check_against_manifest("odmd-v1", "test", "robot", last) is not None
+    assert check_against_manifest(get_benchmark("odmd-v1"), "test", "robot", last) is not None
 
 
 def test_the_arrays_and_attributes_a_set_is_hashed_by() -> None:
@@ -419,35 +420,52 @@ def test_file_sha256_reads_in_bounded_chunks(tmp_path: Path, monkeypatch: pytest
 
 
 def test_a_set_is_its_pinned_version_or_named() -> None:
-    from odmd_bench.data.manifests import known_originals
-    from odmd_bench.data.store import is_pinned, pin, pin_problem
+    from odmd_bench.data.manifests import is_pinned, known_originals, pin, pin_problem
+    from odmd_bench.data.registry import get_benchmark
 
-    v1 = pin("odmd-v1", "test", "robot")
+    v1 = pin(get_benchmark("odmd-v1"), "test", "robot")
     good = {"content_sha256": v1["sha256"], "meta_sha256": v1["meta_sha256"]}
-    assert is_pinned("odmd-v1", {}) and pin_problem("odmd-v1", "test", "robot", dict(good)) is None
+    assert (
+        is_pinned(get_benchmark("odmd-v1"), {})
+        and pin_problem(get_benchmark("odmd-v1"), "test", "robot", dict(good)) is None
+    )
     content = {**good, "content_sha256": "f" * 64}
-    assert pin_problem("odmd-v1", "test", "robot", content) == (
+    assert pin_problem(get_benchmark("odmd-v1"), "test", "robot", content) == (
         f"odmd-v1 test robot: content SHA-256 ffffffffffffffff... differs from the pinned {v1['sha256'][:16]}... "
         "in splits/odmd-v1.json"
     )
     meta = {**good, "meta_sha256": "e" * 64}
-    assert pin_problem("odmd-v1", "test", "robot", meta) == (
+    assert pin_problem(get_benchmark("odmd-v1"), "test", "robot", meta) == (
         f"odmd-v1 test robot: metadata SHA-256 eeeeeeeeeeeeeeee... differs from the pinned "
         f"{v1['meta_sha256'][:16]}... in splits/odmd-v1.json"
     )
-    paper = pin("odmd-paper", "test", "camera")
+    paper = pin(get_benchmark("odmd-paper"), "test", "camera")
     mine = {"content_sha256": paper["sha256"], "meta_sha256": paper["meta_sha256"]}
-    assert not is_pinned("odmd-paper", mine)  # no source: imported with --allow-unknown, or written
-    assert pin_problem("odmd-paper", "test", "camera", {**mine, "content_sha256": "0" * 64}) is None
-    assert not is_pinned("odmd-paper", {**mine, "source_sha256": "0" * 64})  # an unknown source
+    assert not is_pinned(
+        get_benchmark("odmd-paper"), mine
+    )  # no source: imported with --allow-unknown, or written
+    assert (
+        pin_problem(get_benchmark("odmd-paper"), "test", "camera", {**mine, "content_sha256": "0" * 64})
+        is None
+    )
+    assert not is_pinned(
+        get_benchmark("odmd-paper"), {**mine, "source_sha256": "0" * 64}
+    )  # an unknown source
     known = {**mine, "source_sha256": paper["source_sha256"]}
-    assert is_pinned("odmd-paper", known) and pin_problem("odmd-paper", "test", "camera", known) is None
-    other = pin("odmd-paper", "test", "robot")["source_sha256"]  # a known original, another set's
-    assert pin_problem("odmd-paper", "test", "camera", {**known, "source_sha256": other}) == (
+    assert (
+        is_pinned(get_benchmark("odmd-paper"), known)
+        and pin_problem(get_benchmark("odmd-paper"), "test", "camera", known) is None
+    )
+    other = pin(get_benchmark("odmd-paper"), "test", "robot")[
+        "source_sha256"
+    ]  # a known original, another set's
+    assert pin_problem(get_benchmark("odmd-paper"), "test", "camera", {**known, "source_sha256": other}) == (
         f"odmd-paper test camera: the set is the conversion of {known_originals()[other]['path']}, not of "
         "the file pinned for it in splits/odmd-paper.json"
     )
-    assert pin_problem("odmd-paper", "test", "camera", {**known, "meta_sha256": "1" * 64}).startswith(  # type: ignore[union-attr]
+    assert pin_problem(
+        get_benchmark("odmd-paper"), "test", "camera", {**known, "meta_sha256": "1" * 64}
+    ).startswith(  # type: ignore[union-attr]
         "odmd-paper test camera: metadata SHA-256 1111111111111111... differs"
     )
 
@@ -457,14 +475,15 @@ def test_the_hashes_of_a_committed_set_are_its_pins() -> None:
     import h5py
 
     from odmd_bench.data.hashing import content_sha256, meta_sha256
-    from odmd_bench.data.store import pin
+    from odmd_bench.data.manifests import pin
+    from odmd_bench.data.registry import get_benchmark
 
     root = Path(__file__).resolve().parents[1]
     with h5py.File(root / "splits" / "odmd-v1" / "robot-test.h5", "r") as h:
         g = h["robot"]
         arrays = {k: g[k][()] for k in g}
         attrs = dict(g.attrs)
-    pinned = pin("odmd-v1", "test", "robot")
+    pinned = pin(get_benchmark("odmd-v1"), "test", "robot")
     assert content_sha256(arrays) == pinned["sha256"] == attrs["content_sha256"]
     assert meta_sha256(attrs) == pinned["meta_sha256"] == attrs["meta_sha256"]
 

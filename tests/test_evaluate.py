@@ -23,7 +23,7 @@ from hypothesis import strategies as st
 import odmd_bench
 from odmd_bench import Examples, OdmdError, UsageError, ValidationError, fill_missing
 from odmd_bench.data.io import write_sets
-from odmd_bench.data.registry import set_file
+from odmd_bench.data.registry import get_benchmark, set_file
 from odmd_bench.evaluation.coverage import check_coverage
 from odmd_bench.evaluation.parse import parse_predictions
 from odmd_bench.evaluation.predictions import write_predictions
@@ -53,7 +53,9 @@ def sets_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
             s: odmd_bench.generate(n, perturbation=PERTURB[s], rng=10 * k + i)
             for i, (s, n) in enumerate(sizes.items())
         }
-        write_sets(set_file(BENCH, split, data), sets, file_attrs={"benchmark": BENCH, "split": split})
+        write_sets(
+            set_file(get_benchmark(BENCH), split, data), sets, file_attrs={"benchmark": BENCH, "split": split}
+        )
     return data
 
 
@@ -137,7 +139,7 @@ def _tiny(depth: list[float]) -> Examples:
 def test_hand_computed_small_case(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     data = tmp_path / "data"
     write_sets(
-        set_file(BENCH, "val", data),
+        set_file(get_benchmark(BENCH), "val", data),
         {
             "normal": _tiny([2.0, 4.0]),
             "camera": _tiny([1.0]),

@@ -20,7 +20,7 @@ from hypothesis import strategies as st
 import odmd_bench
 from odmd_bench import ParsedPredictions, UsageError, ValidationError, parse_predictions
 from odmd_bench.data.io import write_sets
-from odmd_bench.data.registry import set_file
+from odmd_bench.data.registry import get_benchmark, set_file
 from odmd_bench.evaluation.compare import compare_results
 from odmd_bench.evaluation.coverage import check_coverage
 from odmd_bench.evaluation.kinds import MAX_ABS_DEPTH
@@ -38,7 +38,9 @@ HEADER = "split,set,index,depth\n"
 def data(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
     d = tmp_path / "data"
     sets = {s: odmd_bench.generate(n, perturbation="both", rng=i) for i, (s, n) in enumerate(N.items())}
-    write_sets(set_file(BENCH, "test", d), sets, file_attrs={"benchmark": BENCH, "split": "test"})
+    write_sets(
+        set_file(get_benchmark(BENCH), "test", d), sets, file_attrs={"benchmark": BENCH, "split": "test"}
+    )
     monkeypatch.setenv("ODMD_BENCH_DATA", str(d))
     return d
 

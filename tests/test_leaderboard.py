@@ -823,12 +823,12 @@ def test_board_data_is_rebuilt_where_stale(tmp_path: Path, original_release: Pat
     """A data folder left by an older odmd-bench (older file format) is rebuilt, not refused."""
     import h5py
 
-    from odmd_bench.data.registry import set_file
+    from odmd_bench.data.registry import get_benchmark, set_file
     from odmd_bench.leaderboard.board import load_board_data
 
     for benchmark in ("odmd-v1", "odmd-paper"):
         first = load_board_data(benchmark, "test", tmp_path, original_release)
-        with h5py.File(set_file(benchmark, "test", tmp_path), "r+") as f:
+        with h5py.File(set_file(get_benchmark(benchmark), "test", tmp_path), "r+") as f:
             f.attrs["format_version"] = 1  # what an older release wrote
         again = load_board_data(benchmark, "test", tmp_path, original_release)
         assert {s: ex.attrs["content_sha256"] for s, ex in again.items()} == {

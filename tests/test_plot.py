@@ -16,7 +16,7 @@ from click.testing import CliRunner
 import odmd_bench
 from odmd_bench.cli.main import cli
 from odmd_bench.data.io import write_sets
-from odmd_bench.data.registry import set_file
+from odmd_bench.data.registry import get_benchmark, set_file
 from odmd_bench.errors import UsageError
 from odmd_bench.evaluation.depth_bins import (
     CSV_COLUMNS,
@@ -131,7 +131,7 @@ def data(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
     sets = {
         s: odmd_bench.generate(N[s], preset="odms", perturbation="both", rng=i) for i, s in enumerate(SETS)
     }
-    write_sets(set_file(BENCH, "test", d), sets)
+    write_sets(set_file(get_benchmark(BENCH), "test", d), sets)
     monkeypatch.setenv("ODMD_BENCH_DATA", str(d))
     return d
 

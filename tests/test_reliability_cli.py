@@ -158,11 +158,11 @@ def test_a_closed_pipe_is_141_however_large_the_output(tmp_path: Path) -> None:
 
     from odmd_bench.data.generator import generate
     from odmd_bench.data.io import write_sets
-    from odmd_bench.data.registry import set_file
+    from odmd_bench.data.registry import get_benchmark, set_file
 
     data = tmp_path / "data"
     sets = {s: generate(1500, rng=i) for i, s in enumerate(("normal", "camera", "object", "robot"))}
-    write_sets(set_file("odmd-paper", "test", data), sets)
+    write_sets(set_file(get_benchmark("odmd-paper"), "test", data), sets)
     env = {**os.environ, "ODMD_BENCH_DATA": str(data)}
     preds = tmp_path / "p.csv"
     run = [sys.executable, "-m", "odmd_bench"]

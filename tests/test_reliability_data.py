@@ -26,8 +26,9 @@ from hypothesis import strategies as st
 import odmd_bench
 from odmd_bench.data.hashing import content_sha256, meta_sha256
 from odmd_bench.data.io import read_set, write_sets
-from odmd_bench.data.registry import set_file
-from odmd_bench.data.store import ensure_generated, manifest
+from odmd_bench.data.manifests import manifest
+from odmd_bench.data.registry import get_benchmark, set_file
+from odmd_bench.data.store import ensure_generated
 from odmd_bench.errors import DataError, MissingDataError, StorageError
 from odmd_bench.outputs import atomic_path, clean_stale_temps, locked
 
@@ -80,7 +81,7 @@ def _robust_like(ex: odmd_bench.Examples) -> float:
 def test_edited_intrinsics_are_refused_then_rebuilt(v1: Path, tmp_path: Path) -> None:
     d = _copy(v1, tmp_path / "d")
     right = _robust_like(odmd_bench.load("test", "normal", data_dir=d))
-    path = set_file("odmd-v1", "test", d)
+    path = set_file(get_benchmark("odmd-v1"), "test", d)
     with h5py.File(path, "r+") as f:
         for g in f.values():
             g.attrs["fx"] = 411.0
@@ -99,7 +100,7 @@ def test_edited_intrinsics_are_refused_then_rebuilt(v1: Path, tmp_path: Path) ->
 )
 def test_every_attribute_is_covered(v1: Path, tmp_path: Path, key: str, value: object) -> None:
     d = _copy(v1, tmp_path / "d")
-    with h5py.File(set_file("odmd-v1", "val", d), "r+") as f:
+    with h5py.File(set_file(get_benchmark("odmd-v1"), "val", d), "r+") as f:
         f["normal"].attrs[key] = value
     with pytest.raises(DataError):
         odmd_bench.load("val", "normal", data_dir=d)
@@ -119,20 +120,22 @@ def test_meta_hash_is_canonical() -> None:
 
 def test_a_file_of_another_benchmark_is_refused(v1: Path, tmp_path: Path) -> None:
     d = tmp_path / "d"
-    set_file("odmd-paper", "test", d).parent.mkdir(parents=True)
-    shutil.copy(set_file("odmd-v1", "test", v1), set_file("odmd-paper", "test", d))
+    set_file(get_benchmark("odmd-paper"), "test", d).parent.mkdir(parents=True)
+    shutil.copy(
+        set_file(get_benchmark("odmd-v1"), "test", v1), set_file(get_benchmark("odmd-paper"), "test", d)
+    )
     with pytest.raises(DataError, match="found as benchmark 'odmd-paper'") as info:
         odmd_bench.load("test", "normal", "odmd-paper", d)
     assert "odmd-bench import" in info.value.render()
-    set_file("odmd-v1", "test", d).parent.mkdir(parents=True)
-    shutil.copy(set_file("odmd-v1", "val", v1), set_file("odmd-v1", "test", d))
+    set_file(get_benchmark("odmd-v1"), "test", d).parent.mkdir(parents=True)
+    shutil.copy(set_file(get_benchmark("odmd-v1"), "val", v1), set_file(get_benchmark("odmd-v1"), "test", d))
     with pytest.raises(DataError, match="found as split 'test'"):
         odmd_bench.load("test", "normal", data_dir=d)
 
 
 def test_a_renamed_group_is_refused(v1: Path, tmp_path: Path) -> None:
     d = _copy(v1, tmp_path / "d")
-    with h5py.File(set_file("odmd-v1", "val", d), "r+") as f:
+    with h5py.File(set_file(get_benchmark("odmd-v1"), "val", d), "r+") as f:
         f.move("normal", "tmp")
         f.move("camera", "normal")
         f.move("tmp", "camera")
@@ -148,7 +151,7 @@ def paper_copy(paper_data_dir: Path, tmp_path: Path) -> Path:
 def test_imported_sets_are_pinned(paper_data_dir: Path) -> None:
     for bench in ("odmd-paper", "odms-detection"):
         for split in ("val", "test"):
-            for s, entry in manifest(bench)["splits"][split].items():
+            for s, entry in manifest(get_benchmark(bench))["splits"][split].items():
                 ex = odmd_bench.load(split, s, bench, paper_data_dir)
                 assert ex.attrs["content_sha256"] == entry["sha256"]
                 assert ex.attrs["meta_sha256"] == entry["meta_sha256"]
@@ -159,7 +162,7 @@ def test_imported_sets_are_pinned(paper_data_dir: Path) -> None:
 def test_an_edited_imported_set_is_refused_even_with_its_hashes_recomputed(
     paper_copy: Path, recompute_meta: bool
 ) -> None:
-    path = set_file("odmd-paper", "test", paper_copy)
+    path = set_file(get_benchmark("odmd-paper"), "test", paper_copy)
     with h5py.File(path, "r+") as f:
         g = f["object"]
         depth = g["depth"][()]
@@ -175,8 +178,8 @@ def test_an_edited_imported_set_is_refused_even_with_its_hashes_recomputed(
 
 
 def test_a_set_from_the_wrong_original_is_refused(paper_copy: Path) -> None:
-    src = set_file("odmd-paper", "val", paper_copy)
-    dst = set_file("odmd-paper", "test", paper_copy)
+    src = set_file(get_benchmark("odmd-paper"), "val", paper_copy)
+    dst = set_file(get_benchmark("odmd-paper"), "test", paper_copy)
     ex = read_set(src, "robot")
     ex.attrs.update(split="test")
     sets = {s: read_set(dst, s) for s in ODMD_SETS if s != "robot"}
@@ -207,7 +210,7 @@ def _flip(path: Path, pos: int) -> None:
 
 def test_a_flipped_header_byte_is_a_clear_error_and_generate_rebuilds(v1: Path, tmp_path: Path) -> None:
     d = _copy(v1, tmp_path / "d")
-    path = set_file("odmd-v1", "test", d)
+    path = set_file(get_benchmark("odmd-v1"), "test", d)
     _flip(path, 499)
     done = _cli("baseline", "box-ls", "-o", str(tmp_path / "p.csv"), env_data=d)
     _clear_error(done, str(path), "odmd-bench generate")
@@ -239,7 +242,7 @@ def test_any_flipped_bit_gives_the_right_set_or_a_data_error(tmp_path: Path, pos
 
 
 def test_import_rebuilds_an_unreadable_file(paper_copy: Path, original_release: Path) -> None:
-    path = set_file("odmd-paper", "test", paper_copy)
+    path = set_file(get_benchmark("odmd-paper"), "test", paper_copy)
     with open(path, "r+b") as fh:
         fh.write(b"\0" * 8)  # no HDF5 signature: nothing of the file can be read
     messages: list[str] = []
@@ -255,7 +258,7 @@ def test_import_rebuilds_an_unreadable_file(paper_copy: Path, original_release: 
 
 
 def test_import_keeps_the_good_sets_of_a_damaged_split(paper_copy: Path, original_release: Path) -> None:
-    path = set_file("odmd-paper", "test", paper_copy)
+    path = set_file(get_benchmark("odmd-paper"), "test", paper_copy)
     with h5py.File(path, "r+") as f:
         f["robot/depth"][0] += 1.0
     messages: list[str] = []
@@ -363,7 +366,7 @@ def test_a_data_folder_that_is_a_file(tmp_path: Path) -> None:
 
 
 def test_a_data_file_that_is_a_folder(tmp_path: Path) -> None:
-    path = set_file("odmd-v1", "test", tmp_path)
+    path = set_file(get_benchmark("odmd-v1"), "test", tmp_path)
     path.mkdir(parents=True)
     with pytest.raises(StorageError, match=r"it is a folder.*rm -r") as info:
         odmd_bench.load("test", "normal", data_dir=tmp_path)
@@ -416,7 +419,7 @@ def test_concurrent_imports_keep_both_sets(original_release: Path, tmp_path: Pat
         for p in procs:
             _, err = p.communicate()
             assert p.returncode == 0, err
-        with h5py.File(set_file("odmd-paper", "val", d), "r") as f:
+        with h5py.File(set_file(get_benchmark("odmd-paper"), "val", d), "r") as f:
             assert sorted(f) == ["normal", "robot"], f"trial {trial} lost a set"
 
 
@@ -537,7 +540,7 @@ def test_text_is_written_as_utf8_whatever_the_locale(tmp_path: Path) -> None:
 def test_file_attributes_other_than_identity_reach_no_set(paper_copy: Path) -> None:
     # No hash covers the file's own attributes: an intrinsics injected there must not give
     # the uncalibrated ODMS sets a camera, nor relabel the data's version.
-    path = set_file("odms-detection", "val", paper_copy)
+    path = set_file(get_benchmark("odms-detection"), "val", paper_copy)
     with h5py.File(path, "r+") as f:
         f.attrs.update({"fx": 205.5, "fy": 205.5, "cx": 320.5, "cy": 240.5, "generator_version": 99})
     ex = odmd_bench.load("val", "normal", "odms-detection", paper_copy)
@@ -549,7 +552,7 @@ def test_file_attributes_other_than_identity_reach_no_set(paper_copy: Path) -> N
 
 def test_an_array_larger_than_the_set_is_refused_before_it_is_read(v1: Path, tmp_path: Path) -> None:
     d = _copy(v1, tmp_path / "d")
-    path = set_file("odmd-v1", "val", d)
+    path = set_file(get_benchmark("odmd-v1"), "val", d)
     with h5py.File(path, "r+") as f:  # 80 TB of zeros, a few hundred bytes on disk
         f["normal"].create_dataset("zzz", shape=(10**13,), dtype="f8", chunks=(10**6,), compression="gzip")
         f["camera"].create_group("sub")
@@ -564,7 +567,7 @@ def test_an_array_larger_than_the_set_is_refused_before_it_is_read(v1: Path, tmp
 
 
 def test_a_pipe_in_a_data_file_place_is_an_error_not_a_wait(tmp_path: Path) -> None:
-    path = set_file("odmd-v1", "val", tmp_path)
+    path = set_file(get_benchmark("odmd-v1"), "val", tmp_path)
     path.parent.mkdir(parents=True)
     os.mkfifo(path)
     with pytest.raises(DataError, match="not a regular file"):
@@ -596,7 +599,7 @@ def test_a_dangling_link_as_the_data_folder_is_named_as_such(tmp_path: Path) -> 
 
 def test_a_pipe_in_a_data_file_place_is_replaced_by_the_writer_not_written_into(tmp_path: Path) -> None:
     """Writing the set into the pipe would block until a reader came: forever."""
-    path = set_file("odmd-v1", "val", tmp_path)
+    path = set_file(get_benchmark("odmd-v1"), "val", tmp_path)
     path.parent.mkdir(parents=True)
     os.mkfifo(path)
     ex = odmd_bench.generate(5, rng=0)

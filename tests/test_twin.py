@@ -19,7 +19,7 @@ import odmd_bench
 import odmd_bench.leaderboard as lb
 from odmd_bench import ValidationError
 from odmd_bench.data.io import write_sets
-from odmd_bench.data.registry import set_file
+from odmd_bench.data.registry import get_benchmark, set_file
 from odmd_bench.evaluation.predictions import write_predictions
 from odmd_bench.evaluation.scoring import evaluate
 from odmd_bench.evaluation.twin import FAR_BETTER, twin_fit
@@ -31,9 +31,9 @@ PERTURB = {"normal": "normal", "camera": "camera", "object": "object"}
 def both(v1_data_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A data folder with odmd-v1 test and a stand-in odmd-paper test of the same sizes."""
     data = tmp_path_factory.mktemp("twin-data")
-    target = set_file("odmd-v1", "test", data)
+    target = set_file(get_benchmark("odmd-v1"), "test", data)
     target.parent.mkdir(parents=True)
-    shutil.copy2(set_file("odmd-v1", "test", v1_data_dir), target)
+    shutil.copy2(set_file(get_benchmark("odmd-v1"), "test", v1_data_dir), target)
     v1 = odmd_bench.load_split("test", "odmd-v1", data)
     paper = {
         s: odmd_bench.generate(len(v1[s]), perturbation=p, rng=90 + i)
@@ -42,7 +42,9 @@ def both(v1_data_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
     robot = v1["robot"]  # the same arrays (and content hash), found as odmd-paper's
     paper["robot"] = dataclasses.replace(robot, attrs={**robot.attrs, "benchmark": "odmd-paper"})
     write_sets(
-        set_file("odmd-paper", "test", data), paper, file_attrs={"benchmark": "odmd-paper", "split": "test"}
+        set_file(get_benchmark("odmd-paper"), "test", data),
+        paper,
+        file_attrs={"benchmark": "odmd-paper", "split": "test"},
     )
     return data
 
@@ -104,13 +106,13 @@ def test_no_twin_in_the_data_folder_means_no_check_and_nothing_built(
     v1_data_dir: Path, tmp_path: Path
 ) -> None:
     data = tmp_path / "data"
-    target = set_file("odmd-v1", "test", data)
+    target = set_file(get_benchmark("odmd-v1"), "test", data)
     target.parent.mkdir(parents=True)
-    shutil.copy2(set_file("odmd-v1", "test", v1_data_dir), target)
+    shutil.copy2(set_file(get_benchmark("odmd-v1"), "test", v1_data_dir), target)
     p = tmp_path / "v1.csv"
     write_predictions(p, "test", _truth("odmd-v1", data, 0.5))
     assert not _twin_warnings(evaluate(p, data_dir=data))
-    assert not set_file("odmd-paper", "test", data).exists()
+    assert not set_file(get_benchmark("odmd-paper"), "test", data).exists()
 
 
 def _add(root: Path, data: Path, preds: Path, benchmark: str) -> lb.Entry:

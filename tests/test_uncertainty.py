@@ -19,7 +19,7 @@ import odmd_bench
 from odmd_bench import ValidationError
 from odmd_bench.cli.main import cli
 from odmd_bench.data.io import write_sets
-from odmd_bench.data.registry import set_file
+from odmd_bench.data.registry import get_benchmark, set_file
 from odmd_bench.evaluation.parse import parse_predictions
 from odmd_bench.evaluation.predictions import format_predictions, write_predictions
 from odmd_bench.evaluation.report import format_per_example, format_result
@@ -45,7 +45,9 @@ def sets_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     sets = {
         s: odmd_bench.generate(n, perturbation=PERTURB[s], rng=i) for i, (s, n) in enumerate(SIZES.items())
     }
-    write_sets(set_file(BENCH, "test", data), sets, file_attrs={"benchmark": BENCH, "split": "test"})
+    write_sets(
+        set_file(get_benchmark(BENCH), "test", data), sets, file_attrs={"benchmark": BENCH, "split": "test"}
+    )
     return data
 
 

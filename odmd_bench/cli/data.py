@@ -119,7 +119,7 @@ def import_(
             "more than one path, --output and --image-size are for `odmd-bench import kitti-tracking`"
         )
     from odmd_bench.data.importer import import_release
-    from odmd_bench.data.registry import set_file
+    from odmd_bench.data.registry import get_benchmark, set_file
 
     written = import_release(
         source,
@@ -129,7 +129,7 @@ def import_(
         progress=lambda m: click.echo(f"warning: {m}", err=True),
     )
     for (bench, split), sets in written.items():
-        click.echo(f"{bench} {split}: {set_file(bench, split, data_dir)} ({', '.join(sets)})")
+        click.echo(f"{bench} {split}: {set_file(get_benchmark(bench), split, data_dir)} ({', '.join(sets)})")
 
 
 @click.command()

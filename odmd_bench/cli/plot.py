@@ -110,9 +110,7 @@ def _score_all(
             loaded[key] = load_split(parsed.split, bench, data_dir, [set_name])
         examples = loaded[key]
         try:
-            predictions = check_coverage(
-                parsed, {set_name: len(examples[set_name])}, sets=[set_name], bench=bench
-            )
+            predictions = check_coverage(parsed, {set_name: len(examples[set_name])}, sets=[set_name])
             results.append(score(predictions, examples, bench=bench))
         except ValidationError as e:
             problems += [f"{e.message}: {q}" for q in e.problems] or [e.message]

@@ -27,9 +27,9 @@ from odmd_bench.data.config import HSR_GRASP_CAMERA
 from odmd_bench.data.examples import Examples, set_problems
 from odmd_bench.data.hashing import group_attrs
 from odmd_bench.data.io import set_names, write_sets
-from odmd_bench.data.manifests import known_originals
+from odmd_bench.data.loading import read_checked
+from odmd_bench.data.manifests import known_originals, pin_problem
 from odmd_bench.data.registry import Benchmark, get_benchmark, set_file
-from odmd_bench.data.store import pin_problem, read_checked
 from odmd_bench.errors import DataError, ImportRefused, StorageError, show_value
 from odmd_bench.inputs.source import MAX_ORIGINAL_BYTES, cap_advice, input_limit, read_at_most
 from odmd_bench.outputs import clean_stale_temps, locked
@@ -342,7 +342,7 @@ def import_release(
             continue
         attrs = group_attrs(ex, ex.attrs["set"])
         digests[(key[0], key[1], ex.attrs["set"])] = attrs["content_sha256"]
-        problem = pin_problem(key[0], key[1], ex.attrs["set"], attrs)
+        problem = pin_problem(get_benchmark(key[0]), key[1], ex.attrs["set"], attrs)
         if problem:
             problems.append(
                 f"{f}: its conversion is not the pinned set ({problem}); this odmd-bench converts differently"

@@ -1,9 +1,19 @@
-"""The pinned manifests in ``splits/`` (installed as ``odmd_bench.splits``)."""
+"""The pinned manifests in ``splits/`` (installed as ``odmd_bench.splits``) and the pins in them.
+
+Every benchmark has a pinned manifest ``splits/<benchmark>.json``: for each split and
+set its size, its content SHA-256 and its metadata SHA-256 (docs/integrity.md). For
+``odmd-v1`` it also says how each set is made: the generator version, preset,
+perturbation and seed, or, for the robot sets, the committed HDF5 file under
+``splits/odmd-v1/``. For the imported benchmarks it names the original file whose
+conversion gives the set. ``splits/odmd-original.json`` pins the files of the original
+release.
+"""
 
 from __future__ import annotations
 
 import json
 import re
+from collections.abc import Mapping
 from functools import cache
 from importlib import resources
 from pathlib import Path
@@ -118,7 +128,20 @@ def read_manifest(name: str) -> dict[str, Any]:
     return data
 
 
-def pinned_sizes(benchmark: str | Benchmark, split: str) -> dict[str, int]:
+def manifest(bench: Benchmark) -> dict[str, Any]:
+    """The pinned manifest of a benchmark (``splits/<benchmark>.json``)."""
+    return read_manifest(bench.name)
+
+
+def pin(bench: Benchmark, split: str, set_name: str) -> dict[str, Any]:
+    """The manifest entry of one set: ``n``, ``sha256``, ``meta_sha256`` and its source."""
+    try:
+        return dict(manifest(bench)["splits"][split][set_name])
+    except KeyError:
+        raise DataError(f"splits/{bench.name}.json pins no set {split} {set_name}") from None
+
+
+def pinned_sizes(bench: Benchmark, split: str) -> dict[str, int]:
     """``{set: number of examples}`` of one split as the benchmark's manifest pins them.
 
     Empty for a split without a manifest entry.
@@ -127,9 +150,7 @@ def pinned_sizes(benchmark: str | Benchmark, split: str) -> dict[str, int]:
         DataError: the manifest is missing or damaged.
     """
     try:
-        entries = read_manifest(benchmark.name if isinstance(benchmark, Benchmark) else benchmark)["splits"][
-            split
-        ]
+        entries = manifest(bench)["splits"][split]
     except KeyError:
         return {}
     return {s: int(e["n"]) for s, e in entries.items()}
@@ -139,3 +160,61 @@ def known_originals() -> dict[str, dict[str, Any]]:
     """``{sha256: entry}`` for every file of the original release (``splits/odmd-original.json``)."""
     files = read_manifest("odmd-original")["files"]
     return {e["sha256"]: {**e, "path": p} for p, e in files.items()}
+
+
+def is_pinned(bench: Benchmark, attrs: Mapping[str, Any]) -> bool:
+    """Whether a loaded set of ``bench`` is its pinned version.
+
+    Loading refuses a set that differs from its pins (:func:`pin_problem`), so this is
+    always True for a generated benchmark, and for an imported one exactly when the set
+    is the conversion of a known original; False for a set imported with
+    ``--allow-unknown`` or written by other means, whose scores do not compare with the
+    paper's.
+    """
+    if bench.generated:
+        return True
+    source = attrs.get("source_sha256")
+    return source is not None and str(source) in known_originals()
+
+
+def pin_problem(bench: Benchmark, split: str, set_name: str, attrs: Mapping[str, Any]) -> str | None:
+    """A problem line if a set with these attributes is not its pinned version, else None.
+
+    ``attrs`` are the set's stored attributes (``content_sha256`` and ``meta_sha256``
+    included, as :func:`~odmd_bench.data.hashing.group_attrs` gives them). A set of a
+    generated benchmark must always match its pins. A set of an imported benchmark
+    must match them when it is the conversion of a known original file (its
+    ``source_sha256`` is in ``splits/odmd-original.json``); sets imported with
+    ``--allow-unknown`` or written by other means are not pinned, and are checked
+    against their own hashes only.
+    """
+    if not is_pinned(bench, attrs):
+        return None
+    entry = pin(bench, split, set_name)
+    source = attrs.get("source_sha256")
+    if not bench.generated and source != entry["source_sha256"]:
+        return (
+            f"{bench.name} {split} {set_name}: the set is the conversion of "
+            f"{known_originals()[str(source)]['path']}, not of the file pinned for it in "
+            f"splits/{bench.name}.json"
+        )
+    for key, what in (("sha256", "content_sha256"), ("meta_sha256", "meta_sha256")):
+        got = str(attrs.get(what))
+        if got != entry[key]:
+            label = "content" if key == "sha256" else "metadata"
+            return (
+                f"{bench.name} {split} {set_name}: {label} SHA-256 {got[:16]}... differs from "
+                f"the pinned {entry[key][:16]}... in splits/{bench.name}.json"
+            )
+    return None
+
+
+def check_against_manifest(bench: Benchmark, split: str, set_name: str, digest: str) -> str | None:
+    """A problem line if ``digest`` is not the pinned content hash of that set, else None."""
+    entry = pin(bench, split, set_name)
+    if entry["sha256"] != digest:
+        return (
+            f"{bench.name} {split} {set_name}: content SHA-256 {digest[:16]}... differs from "
+            f"the pinned {entry['sha256'][:16]}... in splits/{bench.name}.json"
+        )
+    return None

@@ -79,7 +79,9 @@ def get_benchmark(name: str) -> Benchmark:
 def resolve_benchmark(benchmark: str | Benchmark) -> Benchmark:
     """``benchmark`` itself when it is a :class:`Benchmark`, else :func:`get_benchmark` of the name.
 
-    The entry points take either, resolve it once here and pass the object down.
+    The entry points (``evaluate``, ``score``, ``load``, ``load_split``,
+    ``ensure_generated``, the CLI) take either, resolve it once here and pass the object
+    down: every function below them takes a :class:`Benchmark`.
     """
     return benchmark if isinstance(benchmark, Benchmark) else get_benchmark(benchmark)
 
@@ -106,18 +108,16 @@ def resolve_data_dir(data_dir: str | os.PathLike[str] | None) -> Path:
     return Path(data_dir).expanduser() if data_dir is not None else default_data_dir()
 
 
-def rebuild_command(benchmark: str | Benchmark, data_dir: str | os.PathLike[str] | None = None) -> str:
-    """The command that (re)builds the files of ``benchmark`` in ``data_dir``."""
-    b = resolve_benchmark(benchmark)
+def rebuild_command(bench: Benchmark, data_dir: str | os.PathLike[str] | None = None) -> str:
+    """The command that (re)builds the files of ``bench`` in ``data_dir``."""
     where = f" --data-dir {data_dir}" if data_dir is not None else ""
-    if b.generated:
-        name = "" if b.name == DEFAULT_BENCHMARK else f" --benchmark {b.name}"
+    if bench.generated:
+        name = "" if bench.name == DEFAULT_BENCHMARK else f" --benchmark {bench.name}"
         return f"odmd-bench generate{name}{where}"
-    return f"odmd-bench import PATH/TO/odmd-original --benchmark {b.name}{where}"
+    return f"odmd-bench import PATH/TO/odmd-original --benchmark {bench.name}{where}"
 
 
-def set_file(benchmark: str | Benchmark, split: str, data_dir: str | os.PathLike[str] | None = None) -> Path:
-    """Path of the HDF5 file holding ``split`` of ``benchmark``: ``DATA/<benchmark>/<split>.h5``."""
-    b = resolve_benchmark(benchmark)
+def set_file(bench: Benchmark, split: str, data_dir: str | os.PathLike[str] | None = None) -> Path:
+    """Path of the HDF5 file holding ``split`` of ``bench``: ``DATA/<benchmark>/<split>.h5``."""
     check_split(split)
-    return resolve_data_dir(data_dir) / b.name / f"{split}.h5"
+    return resolve_data_dir(data_dir) / bench.name / f"{split}.h5"

@@ -1,23 +1,18 @@
-"""Building, verifying and loading the benchmark files.
+"""The data folder's entry points: generate a benchmark's files, load its sets.
 
-Every benchmark has a pinned manifest ``splits/<benchmark>.json``: for each split and
-set its size, its content SHA-256 and its metadata SHA-256 (docs/integrity.md). For
-``odmd-v1`` it also says how each set is made: the generator version, preset,
-perturbation and seed, or, for the robot sets, the committed HDF5 file under
-``splits/odmd-v1/``. For the imported benchmarks it names the original file whose
-conversion gives the set.
-
-Every load checks a set's two hashes, its identity (benchmark, split, set) against
-where it was found and, where the set is a pinned one, the pins. Writers
-(:func:`ensure_generated`, the importer) hold a lock on the split's file while they
-read, merge and replace it.
+:func:`ensure_generated` writes (or reuses) the files of a generated benchmark, each
+checked against its pins in ``splits/`` (:mod:`odmd_bench.data.manifests`); it holds a
+lock on the split's file while it reads, merges and replaces it. :func:`load` and
+:func:`load_split` take a benchmark's name or object, resolve it once, generate a
+missing split of a generated benchmark first (the one step that writes), and then load
+it through :mod:`odmd_bench.data.loading`, which reads and verifies and writes nothing.
 """
 
 from __future__ import annotations
 
 import logging
 import os
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
 
@@ -25,7 +20,8 @@ from odmd_bench.data.examples import Examples
 from odmd_bench.data.generator import GENERATOR_VERSION, generate
 from odmd_bench.data.hashing import content_sha256, group_attrs, set_arrays
 from odmd_bench.data.io import read_set, write_sets
-from odmd_bench.data.manifests import read_manifest, splits_dir
+from odmd_bench.data.loading import is_missing, read_checked, read_split
+from odmd_bench.data.manifests import pin, pin_problem, splits_dir
 from odmd_bench.data.registry import (
     BENCHMARKS,
     SPLITS,
@@ -36,7 +32,7 @@ from odmd_bench.data.registry import (
     resolve_benchmark,
     set_file,
 )
-from odmd_bench.errors import DataError, MissingDataError, UsageError
+from odmd_bench.errors import DataError, UsageError
 from odmd_bench.outputs import clean_stale_temps, locked
 
 log = logging.getLogger("odmd_bench")
@@ -44,26 +40,11 @@ log = logging.getLogger("odmd_bench")
 Progress = Callable[[str], None]
 
 
-def manifest(benchmark: str | Benchmark) -> dict[str, Any]:
-    """The pinned manifest of a benchmark (``splits/<benchmark>.json``)."""
-    return read_manifest(resolve_benchmark(benchmark).name)
-
-
-def pin(benchmark: str | Benchmark, split: str, set_name: str) -> dict[str, Any]:
-    """The manifest entry of one set: ``n``, ``sha256``, ``meta_sha256`` and its source."""
-    b = resolve_benchmark(benchmark)
-    try:
-        return dict(manifest(b)["splits"][split][set_name])
-    except KeyError:
-        raise DataError(f"splits/{b.name}.json pins no set {split} {set_name}") from None
-
-
-def build_set(benchmark: str | Benchmark, split: str, set_name: str) -> Examples:
+def build_set(b: Benchmark, split: str, set_name: str) -> Examples:
     """Make one set of a generated benchmark from its manifest entry.
 
     The set is not yet checked against the pins; :func:`ensure_generated` does that.
     """
-    b = resolve_benchmark(benchmark)
     if not b.generated:
         raise DataError(f"benchmark {b.name!r} is imported, not generated: run `{rebuild_command(b)}`")
     entry = pin(b, split, set_name)
@@ -87,100 +68,9 @@ def build_set(benchmark: str | Benchmark, split: str, set_name: str) -> Examples
     return ex
 
 
-def is_pinned(benchmark: str | Benchmark, attrs: Mapping[str, Any]) -> bool:
-    """Whether a loaded set of ``benchmark`` is its pinned version.
-
-    Loading refuses a set that differs from its pins (:func:`pin_problem`), so this is
-    always True for a generated benchmark, and for an imported one exactly when the set
-    is the conversion of a known original; False for a set imported with
-    ``--allow-unknown`` or written by other means, whose scores do not compare with the
-    paper's.
-    """
-    if resolve_benchmark(benchmark).generated:
-        return True
-    from odmd_bench.data.manifests import known_originals
-
-    source = attrs.get("source_sha256")
-    return source is not None and str(source) in known_originals()
-
-
-def pin_problem(benchmark: str | Benchmark, split: str, set_name: str, attrs: dict[str, Any]) -> str | None:
-    """A problem line if a set with these attributes is not its pinned version, else None.
-
-    ``attrs`` are the set's stored attributes (``content_sha256`` and ``meta_sha256``
-    included, as :func:`~odmd_bench.data.hashing.group_attrs` gives them). A set of a
-    generated benchmark must always match its pins. A set of an imported benchmark
-    must match them when it is the conversion of a known original file (its
-    ``source_sha256`` is in ``splits/odmd-original.json``); sets imported with
-    ``--allow-unknown`` or written by other means are not pinned, and are checked
-    against their own hashes only.
-    """
-    b = resolve_benchmark(benchmark)
-    if not is_pinned(b, attrs):
-        return None
-    entry = pin(b, split, set_name)
-    source = attrs.get("source_sha256")
-    if not b.generated and source != entry["source_sha256"]:
-        from odmd_bench.data.manifests import known_originals
-
-        return (
-            f"{b.name} {split} {set_name}: the set is the conversion of "
-            f"{known_originals()[str(source)]['path']}, not of the file pinned for it in "
-            f"splits/{b.name}.json"
-        )
-    for key, what in (("sha256", "content_sha256"), ("meta_sha256", "meta_sha256")):
-        got = str(attrs.get(what))
-        if got != entry[key]:
-            label = "content" if key == "sha256" else "metadata"
-            return (
-                f"{b.name} {split} {set_name}: {label} SHA-256 {got[:16]}... differs from "
-                f"the pinned {entry[key][:16]}... in splits/{b.name}.json"
-            )
-    return None
-
-
-def check_against_manifest(benchmark: str | Benchmark, split: str, set_name: str, digest: str) -> str | None:
-    """A problem line if ``digest`` is not the pinned content hash of that set, else None."""
-    b = resolve_benchmark(benchmark)
-    entry = pin(b, split, set_name)
-    if entry["sha256"] != digest:
-        return (
-            f"{b.name} {split} {set_name}: content SHA-256 {digest[:16]}... differs from "
-            f"the pinned {entry['sha256'][:16]}... in splits/{b.name}.json"
-        )
-    return None
-
-
-def read_checked(
-    path: Path,
-    benchmark: str | Benchmark,
-    split: str,
-    set_name: str,
-    data_dir: str | os.PathLike[str] | None = None,
-    *,
-    fix: str | None = None,
-) -> Examples:
-    """Read one set of ``benchmark``/``split`` from ``path`` with every check of a load.
-
-    ``fix`` replaces the default advice (run the command that rebuilds the file).
-
-    Raises:
-        DataError: damaged, altered, stale, misplaced or not the pinned set; the
-            message gives the command that rebuilds it (``StorageError`` for an OS
-            failure, ``MissingDataError`` for a missing file).
-    """
-    b = resolve_benchmark(benchmark)
-    fix = fix or f"run `{rebuild_command(b, data_dir)}` to rebuild it"
-    ex = read_set(path, set_name, expect={"benchmark": b.name, "split": split}, fix=fix)
-    problem = pin_problem(b, split, set_name, ex.attrs)
-    if problem:
-        raise DataError(f"{path} is stale or altered; {fix}", [problem])
-    return ex
-
-
 def _why_not_right(path: Path, b: Benchmark, split: str) -> str | None:
     """None if ``path`` holds every set of the split with its pins, else why not."""
-    if not path.exists() and not path.is_symlink():
+    if is_missing(path):
         return "missing"
     try:
         for s in b.sets:
@@ -280,21 +170,16 @@ def _pinned_hashes(b: Benchmark, split: str) -> dict[str, str]:
     return {s: pin(b, split, s)["sha256"] for s in b.sets}
 
 
-def _path_for(split: str, b: Benchmark, data_dir: str | os.PathLike[str] | None) -> Path:
-    check_split(split)
+def generate_missing(b: Benchmark, split: str, data_dir: str | os.PathLike[str] | None = None) -> None:
+    """Generate ``split`` of ``b`` first where its file is missing and ``b`` is generated (logged).
+
+    The step an entry point takes before it loads: a missing split of an imported
+    benchmark is left for the load to refuse, with the command that imports it.
+    """
     path = set_file(b, split, data_dir)
-    if not path.exists() and not path.is_symlink():
-        if b.generated:
-            log.warning("%s is missing; generating %s %s first", path, b.name, split)
-            ensure_generated(b, [split], data_dir)
-        else:
-            raise MissingDataError(
-                f"{b.name} {split} is not in the data folder ({path} is missing); it is "
-                f"imported, not generated: run `{rebuild_command(b, data_dir)}` "
-                "(PATH/TO/odmd-original: the original release's data folder) first",
-                filename=str(path),
-            )
-    return path
+    if b.generated and is_missing(path):
+        log.warning("%s is missing; generating %s %s first", path, b.name, split)
+        ensure_generated(b, [split], data_dir)
 
 
 def load(
@@ -328,10 +213,7 @@ def load(
             f"load({split!r}, {set_name!r}): the split comes first, then the set: "
             f"load({set_name!r}, {split!r}{tail})"
         )
-    b = resolve_benchmark(benchmark)
-    check_set(b, set_name)
-    path = _path_for(split, b, data_dir)
-    return read_checked(path, b, split, set_name, data_dir)
+    return _load(split, resolve_benchmark(benchmark), [set_name], data_dir)[set_name]
 
 
 def load_split(
@@ -348,5 +230,14 @@ def load_split(
             f"load_split({benchmark!r}, {split!r})"
         )
     b = resolve_benchmark(benchmark)
-    names = list(sets) if sets is not None else list(b.sets)
-    return {s: load(split, s, b, data_dir) for s in names}
+    return _load(split, b, list(sets) if sets is not None else list(b.sets), data_dir)
+
+
+def _load(
+    split: str, b: Benchmark, names: list[str], data_dir: str | os.PathLike[str] | None
+) -> dict[str, Examples]:
+    """The sets ``names`` of ``b``/``split``, checked, generated first where missing, verified."""
+    for s in names:
+        check_set(b, s)
+    generate_missing(b, split, data_dir)
+    return read_split(b, split, data_dir, names)

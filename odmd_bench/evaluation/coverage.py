@@ -15,7 +15,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from odmd_bench.data.manifests import pinned_sizes
-from odmd_bench.data.registry import Benchmark, resolve_benchmark
+from odmd_bench.data.registry import Benchmark
 from odmd_bench.errors import UsageError
 from odmd_bench.evaluation.parse import ParsedPredictions
 from odmd_bench.evaluation.result import Predictions
@@ -57,7 +57,6 @@ def check_coverage(
     *,
     sets: Sequence[str] | None = None,
     board: bool = False,
-    bench: Benchmark | None = None,
 ) -> Predictions:
     """Place parsed estimates by index and check that they cover every example once.
 
@@ -70,7 +69,6 @@ def check_coverage(
             default: every set of the benchmark must be covered.
         board: the file is a leaderboard entry's (a set without rows is not told to
             use ``--sets``, which a board does not have).
-        bench: the benchmark ``parsed.benchmark`` names, when the caller has resolved it.
 
     Returns:
         Validated predictions, ``depths[s][i]`` the estimate of example ``i`` of set ``s``.
@@ -80,11 +78,11 @@ def check_coverage(
         UsageError: unknown ``sets``, or ``sizes`` missing a set in scope.
     """
     problems = parsed.problems.copy()
-    if parsed.benchmark is None or parsed.split is None:
+    bench = parsed.bench
+    if bench is None or parsed.split is None:
         if not problems:  # pragma: no cover - the parser records why
             problems.add("the file's benchmark or split could not be determined")
         raise problems.error(parsed.name)
-    bench = bench if bench is not None else resolve_benchmark(parsed.benchmark)
     scope = check_sets(sets, bench) if sets is not None else bench.sets
     lacking = [s for s in scope if s not in sizes]
     if lacking:

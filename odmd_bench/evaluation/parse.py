@@ -40,7 +40,8 @@ class ParsedPredictions:
     Attributes:
         name: how the file is named in messages and provenance.
         sha256: SHA-256 of the CSV bytes (after gzip decompression).
-        benchmark: the benchmark (argument, column or default); None if undetermined.
+        bench: the benchmark (argument, column or default); None if undetermined.
+            ``benchmark`` is its name.
         split: the file's split; None if undetermined.
         n_rows: data rows in the file (blank lines not counted).
         ignored_columns: columns other than the required and optional ones.
@@ -60,7 +61,7 @@ class ParsedPredictions:
 
     name: str
     sha256: str
-    benchmark: str | None
+    bench: Benchmark | None
     split: str | None
     n_rows: int
     ignored_columns: tuple[str, ...]
@@ -74,6 +75,11 @@ class ParsedPredictions:
     benchmark_column: bool = False
     uncertainty: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
     level: float | None = None
+
+    @property
+    def benchmark(self) -> str | None:
+        """The name of :attr:`bench`; None if undetermined."""
+        return self.bench.name if self.bench is not None else None
 
 
 def parse_predictions(
@@ -154,19 +160,18 @@ def _finish(
     rows: Rows, header: list[str], label: str, sha256: str, bench: Benchmark | None
 ) -> ParsedPredictions:
     """Resolve the benchmark and split, check set names and duplicates, build the result."""
-    benchmark = bench.name if bench is not None else None
     problems = rows.fields
-    bench_name: str | None
+    chosen: Benchmark | None
     if "benchmark" in rows.cols:
         problems.extend(rows.bench_bad)
         from_file = single_value(rows.bench_tally, problems, "benchmark")
-        if benchmark is not None and from_file is not None and from_file != benchmark:
-            problems.add(f"the file's benchmark column says {from_file!r} but --benchmark is {benchmark!r}")
-            bench_name = None
-        else:
-            bench_name = benchmark or from_file
+        if bench is not None and from_file is not None and from_file != bench.name:
+            problems.add(f"the file's benchmark column says {from_file!r} but --benchmark is {bench.name!r}")
+            chosen = None
+        else:  # the rows keep only registered names in the tally
+            chosen = bench or (BENCHMARKS[from_file] if from_file is not None else None)
     else:
-        bench_name = benchmark or DEFAULT_BENCHMARK
+        chosen = bench or BENCHMARKS[DEFAULT_BENCHMARK]
     problems.extend(rows.split_bad)
     split = single_value(rows.split_tally, problems, "split")
 
@@ -176,8 +181,8 @@ def _finish(
     indices = np.frombuffer(rows.index, dtype=np.int64)
     keep = np.frombuffer(rows.index_ok, dtype=np.int8).astype(bool)
     set_problems = Problems()
-    if bench_name is not None:
-        keep &= _check_set_names(names, codes, lines, BENCHMARKS[bench_name].sets, bench_name, set_problems)
+    if chosen is not None:
+        keep &= _check_set_names(names, codes, lines, chosen.sets, chosen.name, set_problems)
     extra = {c: np.frombuffer(v, dtype=np.float64) for c, v in rows.extra_values.items()}
     extra_problems = Problems()
     level = check_values(extra, lines, extra_problems) if extra else None
@@ -186,7 +191,7 @@ def _finish(
     return ParsedPredictions(
         name=label,
         sha256=sha256,
-        benchmark=bench_name,
+        bench=chosen,
         split=split,
         n_rows=rows.n,
         ignored_columns=tuple(

@@ -3,8 +3,9 @@
 The pipeline, each stage a pure function but the loading of the sets:
 
 1. :func:`~odmd_bench.evaluation.parse.parse_predictions` checks the file's text;
-2. the sets of the file's benchmark and split are loaded (:func:`odmd_bench.load_split`
-   verifies their content hashes);
+2. the sets of the file's benchmark and split are loaded
+   (:func:`~odmd_bench.data.loading.read_split` verifies their hashes and pins; a
+   missing split of a generated benchmark is generated first, the one step that writes);
 3. :func:`~odmd_bench.evaluation.coverage.check_coverage` checks the rows against the
    sets' sizes;
 4. :func:`score` computes the metrics.
@@ -27,8 +28,9 @@ import numpy as np
 
 from odmd_bench._version import __version__
 from odmd_bench.data.examples import Examples, set_problems
-from odmd_bench.data.registry import Benchmark, resolve_benchmark
-from odmd_bench.data.store import is_pinned
+from odmd_bench.data.loading import read_split
+from odmd_bench.data.manifests import is_pinned
+from odmd_bench.data.registry import Benchmark, get_benchmark, resolve_benchmark
 from odmd_bench.errors import DataError, ValidationError
 from odmd_bench.evaluation.columns import OPTIONAL_COLUMNS, REQUIRED_COLUMNS
 from odmd_bench.evaluation.coverage import check_coverage, check_sets
@@ -59,7 +61,8 @@ def score(
     Args:
         predictions: from :func:`~odmd_bench.evaluation.coverage.check_coverage`.
         examples: ``{set: Examples}`` holding at least the sets of ``predictions.depths``.
-        bench: the benchmark ``predictions.benchmark`` names, when the caller has resolved it.
+        bench: the benchmark ``predictions.benchmark`` names, where the caller has it
+            (else it is looked up by that name).
 
     Returns:
         The scores, with provenance.
@@ -110,7 +113,7 @@ def score(
         "ignored_columns": list(predictions.ignored_columns),
     }
     warnings = tuple(predictions.warnings) + _units_warning(preds, used)
-    bench = bench if bench is not None else resolve_benchmark(predictions.benchmark)
+    bench = bench if bench is not None else get_benchmark(predictions.benchmark)
     unpinned = [s for s in per_set if not is_pinned(bench, used[s].attrs)]
     if unpinned:
         provenance["unpinned_sets"] = unpinned
@@ -190,18 +193,19 @@ def evaluate(
         (['normal', 'camera', 'object', 'robot'], 10.0)
         >>> tmp.cleanup()
     """
-    from odmd_bench.data.store import load_split
+    from odmd_bench.data.store import generate_missing
 
     given = resolve_benchmark(benchmark) if benchmark is not None else None
     if given is not None and sets is not None:
         check_sets(sets, given)
     parsed = parse_predictions(path, name=name, benchmark=given, strict=False)
-    if parsed.benchmark is None or parsed.split is None:
+    bench = parsed.bench  # ``given``, or the file's benchmark
+    if bench is None or parsed.split is None:
         raise parsed.problems.error(parsed.name)
-    bench = given if given is not None else resolve_benchmark(parsed.benchmark)
     scope = check_sets(sets, bench) if sets is not None else None
-    examples = load_split(parsed.split, bench, data_dir, list(scope) if scope else None)
-    predictions = check_coverage(parsed, {s: len(ex) for s, ex in examples.items()}, sets=sets, bench=bench)
+    generate_missing(bench, parsed.split, data_dir)  # the one step that writes
+    examples = read_split(bench, parsed.split, data_dir, scope)
+    predictions = check_coverage(parsed, {s: len(ex) for s, ex in examples.items()}, sets=sets)
     result = score(predictions, examples, bench=bench)
     if not parsed.benchmark_column:
         fit = twin_fit(result, data_dir)

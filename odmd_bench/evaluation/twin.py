@@ -16,7 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from odmd_bench.data.registry import set_file
+from odmd_bench.data.loading import read_split
+from odmd_bench.data.registry import get_benchmark, set_file
 from odmd_bench.errors import OdmdError
 from odmd_bench.evaluation.metrics import percent_error
 from odmd_bench.evaluation.result import EvaluationResult
@@ -66,14 +67,13 @@ def twin_fit(result: EvaluationResult, data_dir: str | os.PathLike[str] | None =
     folder (it is never generated or imported for this), it cannot be loaded or scored
     against, or no set scored differs between the two (the robot sets are the same).
     """
-    from odmd_bench.data.store import load_split
-
     twin = TWINS.get(result.benchmark)
-    if twin is None or not set_file(twin, result.split, data_dir).is_file():
+    other_bench = get_benchmark(twin) if twin is not None else None
+    if other_bench is None or not set_file(other_bench, result.split, data_dir).is_file():
         return None
     depths, examples = result.predictions, result.examples
     try:
-        other = load_split(result.split, twin, data_dir, sets=list(depths))
+        other = read_split(other_bench, result.split, data_dir, sets=list(depths))
         names = tuple(
             s
             for s in other
@@ -86,4 +86,4 @@ def twin_fit(result: EvaluationResult, data_dir: str | os.PathLike[str] | None =
     if not names:
         return None
     here = [result.sets[s]["percent_error"]["mean"] for s in names]
-    return TwinFit(result.benchmark, twin, names, float(np.mean(here)), float(np.mean(there)))
+    return TwinFit(result.benchmark, other_bench.name, names, float(np.mean(here)), float(np.mean(there)))

@@ -38,8 +38,8 @@ import numpy as np
 from odmd_bench.data.examples import Examples
 from odmd_bench.data.hashing import file_sha256, group_attrs
 from odmd_bench.data.io import write_sets
+from odmd_bench.data.manifests import pin
 from odmd_bench.data.registry import Benchmark, get_benchmark, set_file
-from odmd_bench.data.store import pin
 from odmd_bench.errors import ImportRefused
 from odmd_bench.kitti.readers import Camera, Labels, read_camera, read_labels, read_poses
 from odmd_bench.kitti.windows import RULES, RULES_VERSION, WindowRules, box_centres, select_windows

@@ -85,9 +85,10 @@ def fresh_seed(seed: int, repeat: int, set_index: int) -> int:
 
 def generated_sets(benchmark: str = BENCHMARK, split: str = SPLIT) -> dict[str, dict[str, Any]]:
     """``{set: manifest entry}`` of the sets of ``benchmark`` ``split`` made by the generator."""
-    from odmd_bench.data.store import manifest
+    from odmd_bench.data.manifests import manifest
+    from odmd_bench.data.registry import get_benchmark
 
-    pins = manifest(benchmark)["splits"][split]
+    pins = manifest(get_benchmark(benchmark))["splits"][split]
     return {s: dict(p) for s, p in pins.items() if p.get("kind") == "generated"}
 
 
