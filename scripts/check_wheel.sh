@@ -233,10 +233,13 @@ case "$where" in
 esac
 # PYTHONSAFEPATH=1 is -P for the Python processes the tests start too (`python -m odmd_bench`,
 # `python -c ...` from the checkout): they import the installed wheel as well. The suite runs
-# on two worker processes (pytest-xdist: about 106 s instead of 154 s on 2 idle cores); its
-# progress and its slowest tests are shown; pytest's cache stays off (the checkout may be
-# read-only).
-PYTHONSAFEPATH=1 "$work/full/bin/python" -P -m pytest -p no:cacheprovider -n 2 --durations=10 \
+# on two worker processes (pytest-xdist), a test file to a worker (--dist loadfile: a file's
+# module fixtures, a board, a site, a browser, DBox's scores, are made by one worker, not by
+# both), each on one thread (two workers with two BLAS/OpenMP threads each on 2 cores spend
+# CPU waiting on each other; a test that sets its threads still does); its progress and its
+# slowest tests are shown; pytest's cache stays off (the checkout may be read-only).
+OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 MKL_NUM_THREADS=1 PYTHONSAFEPATH=1 \
+    "$work/full/bin/python" -P -m pytest -p no:cacheprovider -n 2 --dist loadfile --durations=10 \
     || fail "the test suite on the installed wheel"
 took "the test suite"
 echo "check_wheel: OK ($((SECONDS - start)) s)"
