@@ -13,10 +13,11 @@
 #   5. run the whole test suite, once, on the first venv's installed wheel (not the checkout): the
 #      one pass of the suite that scripts/check.sh makes (its progress shown as it runs).
 # The venvs reuse the dependencies already installed in the running Python's environment
-# (a .pth file pointing at its site-packages) and install the wheel with --no-deps: nothing
-# is downloaded. The original release ($ODMD_ORIGINAL, default ../shared/odmd-original)
-# is needed for import and the leaderboard check: in CI (CI=true) it must be there, elsewhere
-# those steps are skipped with a line.
+# (a .pth file pointing at its site-packages) and install the wheel with --no-deps, by the
+# running environment's pip (none is installed into them): nothing is downloaded. The
+# original release ($ODMD_ORIGINAL, default ../shared/odmd-original) is needed for import and
+# the leaderboard check: in CI (CI=true) it must be there, elsewhere those steps are skipped
+# with a line.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 repo=$PWD
@@ -128,14 +129,14 @@ deps=$("$py" -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])')
 make_venv() {  # make_venv DIR [BLOCKED_MODULE...]: a venv with the wheel, deps from $deps
     local dir=$1
     shift
-    "$py" -m venv "$dir"
+    "$py" -m venv --without-pip "$dir"  # the running pip installs into it (pip --python): no ensurepip
     local sp
     sp=$("$dir/bin/python" -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])')
     echo "$deps" >"$sp/deps.pth"
     if [ $# -gt 0 ]; then  # a .pth line runs at start-up: these modules cannot be imported
         printf 'import sys; sys.modules.update(dict.fromkeys((%s)))\n' "$(printf '"%s",' "$@")" >"$sp/blocked.pth"
     fi
-    "$dir/bin/python" -m pip install -q --no-deps --ignore-installed "$wheel" >"$work/install.log" 2>&1 \
+    "$py" -m pip --python "$dir/bin/python" install -q --no-deps --ignore-installed "$wheel" >"$work/install.log" 2>&1 \
         || { cat "$work/install.log" >&2; fail "the wheel does not install into $dir"; }
 }
 make_venv "$work/full"
