@@ -13,10 +13,11 @@
 #   5. run the whole test suite, once, on the first venv's installed wheel (not the checkout): the
 #      one pass of the suite that scripts/check.sh makes (its progress shown as it runs).
 # The venvs reuse the dependencies already installed in the running Python's environment
-# (a .pth file pointing at its site-packages) and install the wheel with --no-deps: nothing
-# is downloaded. The original release ($ODMD_ORIGINAL, default ../shared/odmd-original)
-# is needed for import and the leaderboard check: in CI (CI=true) it must be there, elsewhere
-# those steps are skipped with a line.
+# (a .pth file pointing at its site-packages) and install the wheel with --no-deps, by the
+# running environment's pip (none is installed into them): nothing is downloaded. The
+# original release ($ODMD_ORIGINAL, default ../shared/odmd-original) is needed for import and
+# the leaderboard check: in CI (CI=true) it must be there, elsewhere those steps are skipped
+# with a line.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 repo=$PWD
@@ -128,14 +129,14 @@ deps=$("$py" -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])')
 make_venv() {  # make_venv DIR [BLOCKED_MODULE...]: a venv with the wheel, deps from $deps
     local dir=$1
     shift
-    "$py" -m venv "$dir"
+    "$py" -m venv --without-pip "$dir"  # the running pip installs into it (pip --python): no ensurepip
     local sp
     sp=$("$dir/bin/python" -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])')
     echo "$deps" >"$sp/deps.pth"
     if [ $# -gt 0 ]; then  # a .pth line runs at start-up: these modules cannot be imported
         printf 'import sys; sys.modules.update(dict.fromkeys((%s)))\n' "$(printf '"%s",' "$@")" >"$sp/blocked.pth"
     fi
-    "$dir/bin/python" -m pip install -q --no-deps --ignore-installed "$wheel" >"$work/install.log" 2>&1 \
+    "$py" -m pip --python "$dir/bin/python" install -q --no-deps --ignore-installed "$wheel" >"$work/install.log" 2>&1 \
         || { cat "$work/install.log" >&2; fail "the wheel does not install into $dir"; }
 }
 make_venv "$work/full"
@@ -235,10 +236,13 @@ case "$where" in
 esac
 # PYTHONSAFEPATH=1 is -P for the Python processes the tests start too (`python -m odmd_bench`,
 # `python -c ...` from the checkout): they import the installed wheel as well. The suite runs
-# on two worker processes (pytest-xdist: about 106 s instead of 154 s on 2 idle cores); its
-# progress and its slowest tests are shown; pytest's cache stays off (the checkout may be
-# read-only).
-PYTHONSAFEPATH=1 "$work/full/bin/python" -P -m pytest -p no:cacheprovider -n 2 --durations=10 \
+# on two worker processes (pytest-xdist), a test file to a worker (--dist loadfile: a file's
+# module fixtures, a board, a site, a browser, DBox's scores, are made by one worker, not by
+# both), each on one thread (two workers with two BLAS/OpenMP threads each on 2 cores spend
+# CPU waiting on each other; a test that sets its threads still does); its progress and its
+# slowest tests are shown; pytest's cache stays off (the checkout may be read-only).
+OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 MKL_NUM_THREADS=1 PYTHONSAFEPATH=1 \
+    "$work/full/bin/python" -P -m pytest -p no:cacheprovider -n 2 --dist loadfile --durations=10 \
     || fail "the test suite on the installed wheel"
 took "the test suite"
 echo "check_wheel: OK ($((SECONDS - start)) s)"

@@ -3,17 +3,26 @@
 Tests that need the original release (``../shared/odmd-original``) skip when it is
 missing on a developer's machine, and fail loudly when ``CI`` is set: CI has the files,
 so their absence there is a broken set-up, never a reason to pass.
+
+The data folders every test file reads (the imported release, the generated odmd-v1 sets)
+are made once per run, not once per process: the first pytest-xdist worker that needs one
+makes it under a lock, in a folder all the run's processes share (:func:`made_once`), and
+the others read it; a pytest run that a test starts (tests/test_contributing.py) finds the
+same folder through ``$ODMD_TEST_SHARED``. They are read-only to the tests: a test that
+changes data copies it first.
 """
 
 from __future__ import annotations
 
 import json
 import os
+import shutil
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import pytest
+from filelock import FileLock
 
 ORIGINAL = Path(__file__).resolve().parents[2] / "shared" / "odmd-original"
 KITTI = Path(__file__).resolve().parents[2] / "shared" / "kitti-tracking"
@@ -41,6 +50,49 @@ def kitti_dir() -> Path:
     return shared_dir(KITTI, "ODMD_KITTI_TRACKING", "label_02", "the KITTI tracking files are")
 
 
+#: Where a run's processes find the folders made once for the run (set by the first
+#: process that needs it; a child process, a pytest run a test starts among them, inherits it).
+SHARED_VARIABLE = "ODMD_TEST_SHARED"
+
+
+def run_folder(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The folder all the processes of this test run share: the xdist workers' common parent."""
+    inherited = os.environ.get(SHARED_VARIABLE)
+    if inherited:
+        return Path(inherited)
+    base = tmp_path_factory.getbasetemp()
+    if os.environ.get("PYTEST_XDIST_WORKER"):  # each worker's basetemp is <the run's>/popen-gwN
+        base = base.parent
+    folder = base / "made-once"
+    folder.mkdir(exist_ok=True)
+    os.environ[SHARED_VARIABLE] = str(folder)
+    return folder
+
+
+def made_once(tmp_path_factory: pytest.TempPathFactory, name: str, make: Callable[[Path], None]) -> Path:
+    """The folder ``name`` of this run, filled by ``make(folder)`` once for all its processes.
+
+    The first process to ask makes it under a lock; the others wait, then read it. A
+    ``make`` that failed leaves no folder marked done: the next one to ask makes it again
+    (and fails the same way, in its own test).
+    """
+    root = run_folder(tmp_path_factory)
+    folder, done = root / name, root / f"{name}.done"
+    with FileLock(root / f"{name}.lock"):
+        if not done.exists():
+            shutil.rmtree(folder, ignore_errors=True)
+            folder.mkdir()
+            make(folder)
+            done.touch()
+    return folder
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _shared_with_child_runs(tmp_path_factory: pytest.TempPathFactory) -> None:
+    """Set ``$ODMD_TEST_SHARED`` from the start, so a pytest run a test starts shares the folders."""
+    run_folder(tmp_path_factory)
+
+
 @pytest.fixture(scope="session")
 def original_release() -> Path:
     return original_dir()
@@ -52,9 +104,7 @@ def paper_data_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     from odmd_bench.data.importer import import_release
 
     src = original_dir()
-    data = tmp_path_factory.mktemp("paper-data")
-    import_release(src, data)
-    return data
+    return made_once(tmp_path_factory, "paper-data", lambda data: import_release(src, data))
 
 
 @pytest.fixture(scope="session")
@@ -62,9 +112,9 @@ def v1_data_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A data folder holding the generated ``odmd-v1`` val and test files."""
     from odmd_bench.data.store import ensure_generated
 
-    data = tmp_path_factory.mktemp("v1-data")
-    ensure_generated("odmd-v1", ("val", "test"), data)
-    return data
+    return made_once(
+        tmp_path_factory, "v1-data", lambda data: ensure_generated("odmd-v1", ("val", "test"), data)
+    )
 
 
 @pytest.fixture(autouse=True)
