@@ -196,3 +196,54 @@ def test_the_baselines_import_each_other_in_no_circle() -> None:
     circles = _circles(edges)
     described = [" <-> ".join(circle) for circle in circles]
     assert not circles, "\n".join(described)
+
+
+ROOT = PACKAGE.parent
+DEVELOPMENT = ROOT / "docs" / "development.md"
+MAX_LINES = 450  # issue 44: a room a newcomer can read; split a longer module by concern
+
+
+def _sources() -> list[Path]:
+    return sorted(
+        p for folder in (PACKAGE, BASELINES) for p in folder.rglob("*.py") if "__pycache__" not in p.parts
+    )
+
+
+def _room_map(text: str) -> set[str]:
+    """The modules docs/development.md's room map names: ```folder/``` headings, then ``| `room.py` |`` rows."""
+    rooms, folder = set(), None
+    for line in text.splitlines():
+        if line.startswith("`") and line.endswith("/`") and " " not in line:
+            folder = line.strip("`")
+        elif folder and line.startswith("| `") and ".py` |" in line:
+            rooms.add(folder + line.split("`")[1])
+        elif line.startswith("#"):
+            folder = None
+    return rooms
+
+
+def test_the_room_map_names_every_module_and_no_other() -> None:
+    mapped = _room_map(DEVELOPMENT.read_text(encoding="utf-8"))
+    there = {p.relative_to(ROOT).as_posix() for p in _sources()}
+    assert not there - mapped, (
+        f"modules missing from docs/development.md's room map: {sorted(there - mapped)}"
+    )
+    assert not mapped - there, (
+        f"docs/development.md's room map names modules that are gone: {sorted(mapped - there)}"
+    )
+
+
+def test_the_room_map_reader_sees_a_missing_room() -> None:
+    text = (
+        "### Rooms\n\n`odmd_bench/outputs/`\n\n| room | concern |\n| --- | --- |\n| `lock.py` | the lock |\n"
+    )
+    assert _room_map(text) == {"odmd_bench/outputs/lock.py"}
+
+
+def test_no_module_is_longer_than_450_lines() -> None:
+    long = {
+        p.relative_to(ROOT).as_posix(): n
+        for p in _sources()
+        if (n := len(p.read_text(encoding="utf-8").splitlines())) > MAX_LINES
+    }
+    assert not long, f"modules over {MAX_LINES} lines (split them by concern): {long}"
