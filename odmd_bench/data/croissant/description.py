@@ -27,7 +27,7 @@ from odmd_bench.data.croissant.vocabulary import (
 )
 from odmd_bench.data.examples import Examples
 from odmd_bench.data.hashing import set_arrays
-from odmd_bench.data.manifests import read_manifest
+from odmd_bench.data.manifests import manifest
 from odmd_bench.data.registry import Benchmark
 from odmd_bench.errors import DataError
 from odmd_bench.project import PAPER_BIBTEX, card_url, repository_url, site_url
@@ -86,7 +86,7 @@ def croissant(
     Raises:
         DataError: a split or set is missing from ``splits``, or is not its pinned version.
     """
-    pins = read_manifest(benchmark.name)["splits"]
+    pins = manifest(benchmark)["splits"]
     files: dict[str, bytes] = {}
     distribution: list[dict[str, Any]] = []
     record_sets: list[dict[str, Any]] = []
