@@ -72,7 +72,7 @@ def _score_all(
     The evaluator's pipeline (parse, coverage, score), with the set loaded once per
     benchmark and split, and each file's benchmark and split checked before any data is read.
     """
-    from odmd_bench.data.registry import check_set
+    from odmd_bench.data.registry import check_set, get_benchmark
     from odmd_bench.data.store import load_split
     from odmd_bench.evaluation.coverage import check_coverage
     from odmd_bench.evaluation.parse import parse_predictions
@@ -104,7 +104,7 @@ def _score_all(
             )
             continue
         first = key
-        bench = parsed.bench
+        bench = get_benchmark(parsed.benchmark)
         check_set(bench, set_name)
         if key not in loaded:
             loaded[key] = load_split(parsed.split, bench, data_dir, [set_name])
