@@ -200,6 +200,22 @@ def add_entry(root: Path, data_dir: Path, preds: Path, method: str, **over: Any)
     return lb.add_entry(root, preds, **kwargs)
 
 
+def boards_data(folder: Path, paper_data_dir: Path, v1_data_dir: Path) -> Path:
+    """``folder`` (made if missing) as the data folder of every board's benchmarks.
+
+    Links to the shared imported (``odmd-paper``, ``odms-detection``) and generated
+    (``odmd-v1``) ones.
+    """
+    folder.mkdir(exist_ok=True)
+    for bench, source in (
+        ("odmd-paper", paper_data_dir),
+        ("odms-detection", paper_data_dir),
+        ("odmd-v1", v1_data_dir),
+    ):
+        (folder / bench).symlink_to(source / bench)
+    return folder
+
+
 def two_entry_board(tmp: Path, data_dir: Path, **expansion_fields: Any) -> Path:
     """``tmp/leaderboard`` with the odmd-v1 test entries of Box_LS and expansion (:func:`add_entry`).
 

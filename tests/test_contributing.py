@@ -27,7 +27,7 @@ import pytest
 import tomllib
 import yaml
 from click.testing import CliRunner
-from conftest import original_dir
+from conftest import boards_data, original_dir
 
 from odmd_bench import leaderboard as lb
 from odmd_bench.cli.main import cli
@@ -242,14 +242,7 @@ def _nudged_predictions(source: Path, out: Path, factor: float) -> Path:
 def test_two_entry_pull_requests_from_one_main_merge_without_conflict_and_pass_the_gates(
     tmp_path: Path, paper_data_dir: Path, v1_data_dir: Path
 ) -> None:
-    data = tmp_path / "data"
-    data.mkdir()
-    for bench, source in (
-        ("odmd-paper", paper_data_dir),
-        ("odms-detection", paper_data_dir),
-        ("odmd-v1", v1_data_dir),
-    ):
-        (data / bench).symlink_to(source / bench)
+    data = boards_data(tmp_path / "data", paper_data_dir, v1_data_dir)
     tree = _copy_tree(tmp_path / "odmd-bench")
     root = tree / "leaderboard"
     box_ls = root / "entries" / "box-ls" / "odmd-v1-test" / "predictions.csv.gz"

@@ -14,6 +14,7 @@ from pathlib import Path
 import pytest
 import yaml
 from click.testing import CliRunner
+from conftest import boards_data
 
 from odmd_bench import leaderboard as lb
 from odmd_bench.cli.main import cli
@@ -104,14 +105,7 @@ def test_frame_of_the_committed_leaderboard(
 ) -> None:
     """The board built from the committed entries (the views are not committed)."""
     pytest.importorskip("pandas")
-    data = tmp_path / "data"
-    data.mkdir()
-    for bench, source in (
-        ("odmd-paper", paper_data_dir),
-        ("odms-detection", paper_data_dir),
-        ("odmd-v1", v1_data_dir),
-    ):
-        (data / bench).symlink_to(source / bench)
+    data = boards_data(tmp_path / "data", paper_data_dir, v1_data_dir)
     built = lb.build(REPO / "leaderboard", data, n_resamples=200)
     df = lb.frame(built, reported=True)
     entries = df[~df["reported"]]

@@ -8,6 +8,7 @@ import re
 from pathlib import Path
 
 import pytest
+from conftest import boards_data
 
 REPO = Path(__file__).resolve().parents[1]
 PAGE = REPO / "docs" / "python.md"
@@ -22,14 +23,8 @@ def test_the_python_page_prints_what_its_comments_say(
 ) -> None:
     pytest.importorskip("torch")
     pytest.importorskip("pandas")
-    data = tmp_path / "data"  # every board's data: the leaderboard is built from its entries
-    data.mkdir()
-    for bench, source in (
-        ("odmd-v1", v1_data_dir),
-        ("odmd-paper", paper_data_dir),
-        ("odms-detection", paper_data_dir),
-    ):
-        (data / bench).symlink_to(source / bench)
+    # every board's data: the leaderboard is built from its entries
+    data = boards_data(tmp_path / "data", paper_data_dir, v1_data_dir)
     monkeypatch.setenv("ODMD_BENCH_DATA", str(data))
     monkeypatch.chdir(REPO)  # build("leaderboard"): "from the repository's root"
     code = "\n".join(_blocks())

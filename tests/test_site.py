@@ -31,7 +31,7 @@ from urllib.parse import parse_qs, urlsplit
 import pytest
 import yaml
 from click.testing import CliRunner
-from conftest import two_entry_board
+from conftest import boards_data, two_entry_board
 
 from odmd_bench import leaderboard as lb
 from odmd_bench.cli.main import cli
@@ -141,14 +141,7 @@ def _sorted(data: dict[str, Any], board: str, key: str, order: str) -> list[str]
 def committed_data_dir(
     paper_data_dir: Path, v1_data_dir: Path, tmp_path_factory: pytest.TempPathFactory
 ) -> Path:
-    data = tmp_path_factory.mktemp("site-data")
-    for bench, source in (
-        ("odmd-paper", paper_data_dir),
-        ("odms-detection", paper_data_dir),
-        ("odmd-v1", v1_data_dir),
-    ):
-        (data / bench).symlink_to(source / bench)
-    return data
+    return boards_data(tmp_path_factory.mktemp("site-data"), paper_data_dir, v1_data_dir)
 
 
 @pytest.fixture(scope="module")
