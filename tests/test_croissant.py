@@ -231,6 +231,22 @@ def test_a_set_that_is_not_its_pinned_version_is_not_described(v1_data_dir: Path
     ]
 
 
+def test_a_refused_description_writes_no_set_out(v1_data_dir: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Every set is checked before any is turned into JSON (seconds each): a refusal comes first."""
+    from odmd_bench.data.croissant import description
+
+    b = get_benchmark("odmd-v1")
+    robot = odmd_bench.load_split("test", b, v1_data_dir, sets=["robot"])["robot"]
+
+    def written(examples: Examples) -> bytes:
+        raise AssertionError("a set was written out before the refusal")
+
+    monkeypatch.setattr(description, "set_file_bytes", written)
+    with pytest.raises(DataError) as e:
+        croissant(b, {"test": {"robot": robot}})
+    assert len(e.value.problems) == 7 and all(p.endswith(": not given") for p in e.value.problems)
+
+
 def test_cli_text_and_usage(v1_data_dir: Path, tmp_path: Path) -> None:
     runner = CliRunner()
     r = runner.invoke(cli, ["describe", "odmd-v1", "--data-dir", str(v1_data_dir)])

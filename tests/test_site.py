@@ -406,6 +406,18 @@ def test_cli_site_writes_replaces_and_refuses_a_folder_of_other_files(
         write_site({}, other / "notes.txt")
 
 
+def test_cli_site_refuses_a_folder_of_other_files_before_it_scores(small_board: Path, tmp_path: Path) -> None:
+    other, data = tmp_path / "other", tmp_path / "data"
+    other.mkdir()
+    data.mkdir()
+    (other / "notes.txt").write_text("mine")
+    args = ["leaderboard", "site", "-o", str(other), "--root", str(small_board), "--data-dir", str(data)]
+    refused = CliRunner().invoke(cli, args)
+    assert refused.exit_code == 2 and "holds no site written by odmd-bench" in refused.output
+    assert not any(data.iterdir())  # nothing was generated to score the board: refused first
+    assert [p.name for p in other.iterdir()] == ["notes.txt"]
+
+
 def test_an_extra_field_of_the_board_is_a_column_and_a_line_of_the_method_page(
     small_board: Path, v1_data_dir: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:

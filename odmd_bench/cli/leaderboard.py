@@ -168,9 +168,10 @@ def site_command(
     Serve the folder with any web server, e.g. python -m http.server -d DIR.
     """
     from odmd_bench.extras import require
-    from odmd_bench.leaderboard.site import build_site, write_site
+    from odmd_bench.leaderboard.site import build_site, check_site_folder, write_site
 
     require("jinja2", "site", "odmd-bench leaderboard site")  # before scoring: fail fast
+    check_site_folder(output)  # a folder of other files too
     folder = _root(root)
     files, said = build_site(
         folder,

@@ -91,17 +91,23 @@ def croissant(
     distribution: list[dict[str, Any]] = []
     record_sets: list[dict[str, Any]] = []
     rows: list[dict[str, Any]] = []
-    problems = []
+    problems = []  # every set is checked before any is written out (which takes a while)
     for split in benchmark.splits:
         for set_name in benchmark.sets:
             ex = splits.get(split, {}).get(set_name)
             pin = pins.get(split, {}).get(set_name, {})
             if ex is None:
                 problems.append(f"{split} {set_name}: not given")
-                continue
-            if ex.attrs.get("content_sha256") != pin.get("sha256"):
+            elif ex.attrs.get("content_sha256") != pin.get("sha256"):
                 problems.append(f"{split} {set_name}: its content hash is not the one pinned in splits/")
-                continue
+    if problems:
+        raise DataError(
+            f"cannot describe {benchmark.name}: every split and set must be given, verified", problems
+        )
+    for split in benchmark.splits:
+        for set_name in benchmark.sets:
+            ex = splits[split][set_name]
+            pin = pins.get(split, {}).get(set_name, {})
             path = set_file_name(benchmark, split, set_name)
             data = set_file_bytes(ex)
             files[path] = data
@@ -165,10 +171,6 @@ def croissant(
                 **{k: a.get(k) for k in ("fx", "fy", "cx", "cy", "image_width", "image_height")},
             }
             rows.append({f"sets/{k}": v for k, v in row.items()})
-    if problems:
-        raise DataError(
-            f"cannot describe {benchmark.name}: every split and set must be given, verified", problems
-        )
     record_sets.insert(
         0,
         {

@@ -46,6 +46,7 @@ __all__ = [
     "ExtraColumn",
     "SiteData",
     "build_site",
+    "check_site_folder",
     "facets",
     "load_site_data",
     "render_site",
@@ -150,6 +151,29 @@ def _written_before(out: Path, new: dict[str, bytes]) -> set[str] | None:
     return {rel for rel in _tree(out)[0] if rel.split("/")[0] in tops}
 
 
+def check_site_folder(out: str | os.PathLike[str]) -> None:
+    """Refuse ``out`` as :func:`write_site` would before it writes: a file, or a folder of other files.
+
+    ``leaderboard site`` calls it before it scores and builds (which takes a while), and
+    :func:`write_site` again before it writes.
+
+    Raises:
+        UsageError: ``out`` is a file, a non-empty folder that holds no site this package
+            wrote, or a folder whose site manifest is not one.
+    """
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise UsageError(f"{out} is a file; give a folder for the site")
+    if out.is_dir() and any(out.iterdir()) and _written_before(out, {}) is None:
+        raise _not_a_site(out)
+
+
+def _not_a_site(out: Path) -> UsageError:
+    return UsageError(
+        f"{out} is not empty and holds no site written by odmd-bench; give a new or empty folder"
+    )
+
+
 def write_site(files: dict[str, bytes], out: str | os.PathLike[str]) -> list[str]:
     """Write the site to the folder ``out``, whole or not at all; keep what it did not write.
 
@@ -168,16 +192,13 @@ def write_site(files: dict[str, bytes], out: str | os.PathLike[str]) -> list[str
             written).
     """
     out = Path(out)
-    if out.exists() and not out.is_dir():
-        raise UsageError(f"{out} is a file; give a folder for the site")
+    check_site_folder(out)
     kept: list[str] = []
     folders: list[str] = []
     if out.is_dir() and any(out.iterdir()):
         ours = _written_before(out, files)
-        if ours is None:
-            raise UsageError(
-                f"{out} is not empty and holds no site written by odmd-bench; give a new or empty folder"
-            )
+        if ours is None:  # changed since check_site_folder
+            raise _not_a_site(out)
         present, folders = _tree(out)
         folders = [rel for rel in folders if not any((out / rel).iterdir())]  # the user's empty ones
         kept = [rel for rel in present if rel not in ours and rel != MANIFEST]
