@@ -35,7 +35,7 @@ from odmd_bench.errors import DataError, ValidationError
 from odmd_bench.evaluation.columns import OPTIONAL_COLUMNS, REQUIRED_COLUMNS
 from odmd_bench.evaluation.coverage import check_coverage, check_sets
 from odmd_bench.evaluation.metrics import all_sets_mean, set_metrics
-from odmd_bench.evaluation.parse import parse_predictions
+from odmd_bench.evaluation.parse import ParsedPredictions, parse_predictions
 from odmd_bench.evaluation.result import EvaluationResult, Predictions
 from odmd_bench.evaluation.twin import twin_fit
 from odmd_bench.evaluation.uncertainty import all_scores, set_scores
@@ -73,6 +73,11 @@ def score(
         DataError: a set cannot be scored against (:func:`~odmd_bench.data.examples.set_problems`:
             a true depth that is not finite and positive, for instance).
     """
+    return _score(predictions, examples, bench if bench is not None else get_benchmark(predictions.benchmark))
+
+
+def _score(predictions: Predictions, examples: Mapping[str, Examples], bench: Benchmark) -> EvaluationResult:
+    """:func:`score` with the benchmark of ``predictions`` at hand."""
     per_set: dict[str, dict[str, Any]] = {}
     preds: dict[str, np.ndarray] = {}
     used: dict[str, Examples] = {}
@@ -113,7 +118,6 @@ def score(
         "ignored_columns": list(predictions.ignored_columns),
     }
     warnings = tuple(predictions.warnings) + _units_warning(preds, used)
-    bench = bench if bench is not None else get_benchmark(predictions.benchmark)
     unpinned = [s for s in per_set if not is_pinned(bench, used[s].attrs)]
     if unpinned:
         provenance["unpinned_sets"] = unpinned
@@ -199,20 +203,33 @@ def evaluate(
     if given is not None and sets is not None:
         check_sets(sets, given)
     parsed = parse_predictions(path, name=name, benchmark=given, strict=False)
-    bench = parsed.bench  # ``given``, or the file's benchmark
-    if bench is None or parsed.split is None:
+    if parsed.bench is not None and parsed.split is not None:
+        if sets is not None:
+            check_sets(sets, parsed.bench)
+        generate_missing(parsed.bench, parsed.split, data_dir)  # the one step that writes
+    return score_file(parsed, data_dir, sets=sets)
+
+
+def score_file(
+    parsed: ParsedPredictions,
+    data_dir: str | os.PathLike[str] | None = None,
+    *,
+    sets: Sequence[str] | None = None,
+) -> EvaluationResult:
+    """Score a parsed predictions file against the verified sets in the data folder; writes nothing."""
+    bench, split = parsed.bench, parsed.split
+    if bench is None or split is None:
         raise parsed.problems.error(parsed.name)
     scope = check_sets(sets, bench) if sets is not None else None
-    generate_missing(bench, parsed.split, data_dir)  # the one step that writes
-    examples = read_split(bench, parsed.split, data_dir, scope)
+    examples = read_split(bench, split, data_dir, scope)
     predictions = check_coverage(parsed, {s: len(ex) for s, ex in examples.items()}, sets=sets)
-    result = score(predictions, examples, bench=bench)
+    result = _score(predictions, examples, bench)
     if not parsed.benchmark_column:
         fit = twin_fit(result, data_dir)
         if fit is not None and fit.far_better:
             said = (
-                f"as asked (--benchmark {benchmark})"
-                if benchmark is not None
+                f"as asked (--benchmark {bench.name})"
+                if parsed.benchmark_argument
                 else "the default, as the file has no benchmark column"
             )
             result = dataclasses.replace(

@@ -17,13 +17,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from odmd_bench.data.loading import read_split
-from odmd_bench.data.registry import get_benchmark, set_file
+from odmd_bench.data.registry import BENCHMARKS, Benchmark
 from odmd_bench.errors import OdmdError
 from odmd_bench.evaluation.metrics import percent_error
 from odmd_bench.evaluation.result import EvaluationResult
 
 #: The benchmark whose sets have the same names and sizes, for each that has one.
-TWINS: dict[str, str] = {"odmd-v1": "odmd-paper", "odmd-paper": "odmd-v1"}
+TWINS: dict[str, Benchmark] = {"odmd-v1": BENCHMARKS["odmd-paper"], "odmd-paper": BENCHMARKS["odmd-v1"]}
 #: The other benchmark fits "far better" when its mean percent error is below this
 #: fraction of the scored one's.
 FAR_BETTER = 0.5
@@ -67,12 +67,11 @@ def twin_fit(result: EvaluationResult, data_dir: str | os.PathLike[str] | None =
     folder (it is never generated or imported for this), it cannot be loaded or scored
     against, or no set scored differs between the two (the robot sets are the same).
     """
-    twin = TWINS.get(result.benchmark)
-    other_bench = get_benchmark(twin) if twin is not None else None
-    if other_bench is None or not set_file(other_bench, result.split, data_dir).is_file():
+    other_bench = TWINS.get(result.benchmark)
+    if other_bench is None:
         return None
     depths, examples = result.predictions, result.examples
-    try:
+    try:  # a missing split raises MissingDataError, as any other that cannot be loaded
         other = read_split(other_bench, result.split, data_dir, sets=list(depths))
         names = tuple(
             s
