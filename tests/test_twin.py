@@ -1,4 +1,4 @@
-"""A file made for one ODMD benchmark, scored or added as the other's (odmd_bench.evaluation.twin).
+"""A file made for one ODMD benchmark, scored or added as the other's (odmd_bench.evaluation.scoring).
 
 ``odmd-v1`` and ``odmd-paper`` have the same sets and sizes, so only the depths can tell.
 The ``odmd-paper`` here is a stand-in written by the test (other examples, the same
@@ -21,8 +21,7 @@ from odmd_bench import ValidationError
 from odmd_bench.data.io import write_sets
 from odmd_bench.data.registry import get_benchmark, set_file
 from odmd_bench.evaluation.predictions import write_predictions
-from odmd_bench.evaluation.scoring import evaluate
-from odmd_bench.evaluation.twin import FAR_BETTER, twin_fit
+from odmd_bench.evaluation.scoring import FAR_BETTER, evaluate, twin_fit
 
 PERTURB = {"normal": "normal", "camera": "camera", "object": "object"}
 

@@ -27,7 +27,6 @@ from odmd_bench.data.registry import (
     SPLITS,
     Benchmark,
     check_set,
-    check_split,
     rebuild_command,
     resolve_benchmark,
     set_file,
@@ -108,27 +107,25 @@ def ensure_generated(
     b = resolve_benchmark(benchmark)
     if not b.generated:
         raise DataError(f"benchmark {b.name!r} is imported, not generated: run `{rebuild_command(b)}`")
-    out: dict[str, dict[str, Any]] = {}
-    for split in splits:
-        check_split(split)
-        path = set_file(b, split, data_dir)
-        for p in clean_stale_temps(path):
-            say(f"removed a dead writer's temporary file {p}")
-        why = None if force else _why_not_right(path, b, split)
-        if not force and why is None:
-            out[split] = _reused(path, b, split, say)
-            continue
+    return {split: _ensure_split(set_file(b, split, data_dir), b, split, force, say) for split in splits}
+
+
+def _ensure_split(path: Path, b: Benchmark, split: str, force: bool, say: Progress) -> dict[str, Any]:
+    """:func:`ensure_generated` for one split of ``b``, whose file is ``path``."""
+    for p in clean_stale_temps(path):
+        say(f"removed a dead writer's temporary file {p}")
+    why = None if force else _why_not_right(path, b, split)
+    if force or why is not None:
         with locked(path):
             if not force:  # another process may have written it while we waited
                 why = _why_not_right(path, b, split)
-                if why is None:
-                    out[split] = _reused(path, b, split, say)
-                    continue
-            if why not in (None, "missing"):
-                say(f"replacing {path}: {why}")
-            out[split] = _write_generated(path, b, split, say)
-            out[split]["replaced"] = None if why == "missing" else (why or "--force")
-    return out
+            if force or why is not None:
+                if why not in (None, "missing"):
+                    say(f"replacing {path}: {why}")
+                out = _write_generated(path, b, split, say)
+                out["replaced"] = None if why == "missing" else (why or "--force")
+                return out
+    return _reused(path, b, split, say)
 
 
 def _reused(path: Path, b: Benchmark, split: str, say: Progress) -> dict[str, Any]:
@@ -162,7 +159,7 @@ def _write_generated(path: Path, b: Benchmark, split: str, say: Progress) -> dic
     if why is not None:
         raise DataError(f"{path}: written file failed verification: {why}")
     say(f"{path}: written and verified")
-    return {"path": path, "reused": False, "sets": _pinned_hashes(b, split)}
+    return {"path": path, "reused": False, "sets": digests}  # each checked against its pin above
 
 
 def _pinned_hashes(b: Benchmark, split: str) -> dict[str, str]:
@@ -179,7 +176,7 @@ def generate_missing(b: Benchmark, split: str, data_dir: str | os.PathLike[str] 
     path = set_file(b, split, data_dir)
     if b.generated and is_missing(path):
         log.warning("%s is missing; generating %s %s first", path, b.name, split)
-        ensure_generated(b, [split], data_dir)
+        _ensure_split(path, b, split, False, log.info)
 
 
 def load(

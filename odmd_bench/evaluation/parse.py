@@ -53,6 +53,7 @@ class ParsedPredictions:
         problems: every problem found; empty when parsed with ``strict=True``.
         benchmark_column: whether the file has a ``benchmark`` column (else its benchmark
             came from the argument or the default).
+        benchmark_asked: whether the caller named the benchmark (``--benchmark``).
         uncertainty: ``{column: (R,) float64}`` of the uncertainty columns the file has
             (:mod:`~odmd_bench.evaluation.uncertainty`), aligned with ``depths``; empty
             without them.
@@ -73,6 +74,7 @@ class ParsedPredictions:
     nonpositive: dict[str, tuple[tuple[int, str], ...]] = field(default_factory=dict, repr=False)
     problems: Problems = field(default_factory=Problems, repr=False, compare=False)
     benchmark_column: bool = False
+    benchmark_asked: bool = False
     uncertainty: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
     level: float | None = None
 
@@ -207,6 +209,7 @@ def _finish(
         nonpositive={names[c]: tuple(v) for c, v in rows.nonpositive.items()},
         problems=problems,
         benchmark_column="benchmark" in rows.cols,
+        benchmark_asked=bench is not None,
         uncertainty={c: v[keep] for c, v in extra.items()},
         level=level,
     )

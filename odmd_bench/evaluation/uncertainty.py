@@ -273,6 +273,7 @@ def set_scores(
     """
     z = np.asarray(y_true, dtype=np.float64)
     out: dict[str, Any] = {}
+    per_example: dict[str, np.ndarray] = {}  # each summarised below, as the percent error is
     # The columns were checked by the reader (finite, >= 0, lo <= hi): computed here at
     # once, without the public functions' checks of every array (the same formulas).
     if level is not None:
@@ -289,10 +290,12 @@ def set_scores(
         width = hi - lo
         miss = np.maximum(lo - z, 0.0)
         miss += np.maximum(z - hi, 0.0)
-        out["sharpness"] = summarize(width / z * 100.0)
-        out["interval_score"] = summarize((width + (2.0 / _alpha(level)) * miss) / z * 100.0)
+        per_example["sharpness"] = width / z * 100.0
+        per_example["interval_score"] = (width + (2.0 / _alpha(level)) * miss) / z * 100.0
     if "depth_std" in columns:
-        out["crps"] = summarize(crps_normal(z, depth, columns["depth_std"]))
+        per_example["crps"] = crps_normal(z, depth, columns["depth_std"])
+    for name, errors in per_example.items():
+        out[name] = summarize(errors)
     return out
 
 

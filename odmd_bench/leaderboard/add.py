@@ -346,7 +346,7 @@ def _fits_the_twin(
     decides the board of such a file; the twin is compared when it is in the data folder.
     """
     from odmd_bench.evaluation.parse import parse_predictions
-    from odmd_bench.evaluation.twin import twin_fit
+    from odmd_bench.evaluation.scoring import twin_fit
 
     if parse_predictions(data, benchmark=spec.benchmark, strict=False).benchmark_column:
         return None  # the column says which, and agrees with --benchmark (checked)
