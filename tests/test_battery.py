@@ -350,6 +350,8 @@ KICKS = [
 
 SITECUSTOMIZE = """
 import os, signal, sys
+if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:  # started by a background job: Ctrl-C as in a terminal
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 class _Kick:
     def find_spec(self, name, path=None, target=None):
         if name == os.environ.get("ODMD_TEST_SIGINT_ON"):
