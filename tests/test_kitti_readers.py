@@ -192,6 +192,17 @@ def test_a_refused_import_exits_2_naming_the_file_and_line_and_writes_nothing(tm
     assert not data.exists() or not any(data.rglob("*.h5"))
 
 
+@pytest.mark.parametrize("size", [("0", "375"), ("1242", "-375")])
+def test_an_image_size_that_is_not_positive_is_refused_first(tmp_path: Path, size: tuple[str, str]) -> None:
+    data = tmp_path / "data"
+    args = ["import", "kitti-tracking", str(tmp_path / "nowhere"), "--image-size", *size]
+    r = CliRunner().invoke(cli, [*args, "--data-dir", str(data)])
+    assert (
+        r.exit_code == 2 and "--image-size: WIDTH and HEIGHT must be positive numbers of pixels" in r.output
+    )
+    assert f"got {float(size[0]):g} {float(size[1]):g}" in r.output and not data.exists()
+
+
 def test_sets_other_than_the_pinned_ones_go_only_to_output(tmp_path: Path) -> None:
     kitti = _copy_kitti(tmp_path)
     pose = kitti / "poses" / "0015.txt"

@@ -94,6 +94,11 @@ def import_(
     if str(source) == "kitti-tracking":
         if benchmark is not None or allow_unknown:
             raise UsageError("--benchmark and --allow-unknown are for the original release's .pk files")
+        if image_size is not None and not all(v > 0 for v in image_size):
+            raise UsageError(
+                f"--image-size: WIDTH and HEIGHT must be positive numbers of pixels; got {image_size[0]:g} "
+                f"{image_size[1]:g}"
+            )
         if len(kitti_paths) not in (1, 3):
             raise UsageError(
                 "odmd-bench import kitti-tracking takes one folder (with label_02/, poses/, calib/) "
