@@ -237,3 +237,36 @@ def two_entry_board(tmp: Path, data_dir: Path, **expansion_fields: Any) -> Path:
         )
         add_entry(root, data_dir, preds, method, **(expansion_fields if method == "expansion" else {}))
     return root
+
+
+def content_memo(function: Callable[..., Any]) -> Callable[..., Any]:
+    """``function`` (pure: its result depends on its arguments only) computed once per distinct input.
+
+    Work that several tests repeat on the same data, made once. The key is the content of
+    every argument (a numpy array's bytes, dtype and shape; anything else by its ``repr``),
+    never a name, so a changed input is computed again; each caller gets its own copy of an
+    array result.
+    """
+    import hashlib
+
+    import numpy as np
+
+    made: dict[str, Any] = {}
+
+    def key(value: Any) -> bytes:
+        if isinstance(value, np.ndarray):
+            return f"{value.dtype.str}{value.shape}".encode() + np.ascontiguousarray(value).tobytes()
+        return repr(value).encode()
+
+    def once(*args: Any, **kwargs: Any) -> Any:
+        digest = hashlib.sha256()
+        for part in [*args, *sorted(kwargs.items())]:
+            data = key(part) if not isinstance(part, tuple) else b"".join(key(p) for p in part)
+            digest.update(len(data).to_bytes(8, "little") + data)
+        k = digest.hexdigest()
+        if k not in made:
+            made[k] = function(*args, **kwargs)
+        result = made[k]
+        return result.copy() if isinstance(result, np.ndarray) else result
+
+    return once

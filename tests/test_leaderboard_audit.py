@@ -500,6 +500,34 @@ def test_the_p_value_range_holds_every_p_a_perturbation_within_the_bounds_gives(
         assert ((low <= got + 1e-9) & (got <= high + 1e-9)).all()
 
 
+@pytest.mark.parametrize("m", [80, 100], ids=["blocks", "subsets"])
+def test_check_counts_the_audit_s_p_values_with_their_ranges_in_one_pass(m: int) -> None:
+    """The p-values ``check --audits`` counts beside their ranges are those the audit draws alone."""
+    from odmd_bench.leaderboard.audit_stats import PERMUTATION_KEY, Collected, assess_with
+
+    rng = np.random.default_rng(10)
+    sets = ["normal", "camera", "object"]
+    committed = {s: rng.exponential(5.0, (40, 2)) for s in sets}
+    fresh = {s: rng.exponential(5.0, (m, 2)) for s in sets}
+    rows = [{"method": "a", "runnable": True}, {"method": "b", "runnable": True}]
+    found = Collected({"seed": 4, "sets": {s: m for s in sets}}, rows, [0, 1], committed, fresh)
+    (low, high), (p, p_all) = ac._ranges_and_pvalues(found, 199, 1e-3)
+    alone, alone_all = resampling.permutation_pvalues(
+        committed, fresh, resampling.keyed_stream(4, PERMUTATION_KEY), 199
+    )
+    assert list(p) == sets and all((p[s] == alone[s]).all() for s in sets) and (p_all == alone_all).all()
+    margins = ac.statistic_margins(committed, fresh, 1e-3)
+    down = ({s: -v for s, v in margins[0].items()}, -margins[1])
+    counts, counts_all = resampling.exceedances(
+        committed, fresh, resampling.keyed_stream(4, PERMUTATION_KEY), 199, (margins, down)
+    )
+    for end, got in enumerate((low, high)):
+        counted = np.column_stack([*(counts[s][end] for s in sets), counts_all[end]])
+        assert (got == resampling.p_value(counted, 199)).all()
+    assert (low <= high).all() and (low < high).any()
+    assert assess_with(found, 199, pvalues=(p, p_all)) == assess_with(found, 199)
+
+
 def test_holm_is_increasing_in_each_p_value() -> None:
     """What the check's range of adjusted p-values rests on."""
     rng = np.random.default_rng(9)
