@@ -243,30 +243,40 @@ def content_memo(function: Callable[..., Any]) -> Callable[..., Any]:
     """``function`` (pure: its result depends on its arguments only) computed once per distinct input.
 
     Work that several tests repeat on the same data, made once. The key is the content of
-    every argument (a numpy array's bytes, dtype and shape; anything else by its ``repr``),
-    never a name, so a changed input is computed again; each caller gets its own copy of an
-    array result.
+    every argument (a numpy array's bytes, dtype and shape; a random generator's state; a
+    mapping's or sequence's items in order; anything else by its ``repr``), never a name, so
+    a changed input is computed again. Each caller gets its own deep copy of the result, and
+    a random generator it passed is left in the state the call left it in.
     """
+    import copy
     import hashlib
 
     import numpy as np
 
-    made: dict[str, Any] = {}
+    made: dict[str, tuple[Any, list[Any]]] = {}
 
     def key(value: Any) -> bytes:
         if isinstance(value, np.ndarray):
-            return f"{value.dtype.str}{value.shape}".encode() + np.ascontiguousarray(value).tobytes()
-        return repr(value).encode()
+            data = f"array {value.dtype.str}{value.shape}".encode() + np.ascontiguousarray(value).tobytes()
+        elif isinstance(value, np.random.Generator):
+            data = f"generator {value.bit_generator.state!r}".encode()
+        elif isinstance(value, dict):
+            data = b"dict" + b"".join(key(k) + key(v) for k, v in value.items())
+        elif isinstance(value, (list, tuple)):
+            data = type(value).__name__.encode() + b"".join(key(v) for v in value)
+        else:
+            data = f"{type(value).__qualname__} {value!r}".encode()
+        return len(data).to_bytes(8, "little") + data
 
     def once(*args: Any, **kwargs: Any) -> Any:
-        digest = hashlib.sha256()
-        for part in [*args, *sorted(kwargs.items())]:
-            data = key(part) if not isinstance(part, tuple) else b"".join(key(p) for p in part)
-            digest.update(len(data).to_bytes(8, "little") + data)
-        k = digest.hexdigest()
+        k = hashlib.sha256(key(list(args)) + key(kwargs)).hexdigest()
+        generators = [a for a in [*args, *kwargs.values()] if isinstance(a, np.random.Generator)]
         if k not in made:
-            made[k] = function(*args, **kwargs)
-        result = made[k]
-        return result.copy() if isinstance(result, np.ndarray) else result
+            result = function(*args, **kwargs)
+            made[k] = (copy.deepcopy(result), [g.bit_generator.state for g in generators])
+        result, states = made[k]
+        for g, state in zip(generators, states, strict=True):
+            g.bit_generator.state = state
+        return copy.deepcopy(result)
 
     return once
