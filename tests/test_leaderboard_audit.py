@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 import pytest
 from click.testing import CliRunner
-from conftest import add_entry, content_memo, recorded_plot
+from conftest import add_entry, memo_each, recorded_plot
 
 from odmd_bench import leaderboard as lb
 from odmd_bench import methods
@@ -103,12 +103,12 @@ def _statistics_made_once() -> Iterator[None]:
     from odmd_bench.leaderboard import audit_stats
 
     with pytest.MonkeyPatch.context() as patch:
-        for module, name in (
+        memo_each(
+            patch,
             (audit_stats, "permutation_pvalues"),
             (audit_stats, "bootstrap_intervals"),
             (ac, "exceedances"),
-        ):
-            patch.setattr(module, name, content_memo(getattr(module, name)))
+        )
         yield
 
 
