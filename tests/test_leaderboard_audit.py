@@ -32,6 +32,9 @@ from odmd_bench.leaderboard import audit as au
 from odmd_bench.leaderboard import audit_check as ac
 from odmd_bench.leaderboard.audit_files import audit_path, read_audits, shape_problems
 
+#: The boards here hold the same files build after build: each parsed and resampled once (conftest).
+pytestmark = pytest.mark.usefixtures("boards_ranked_once")
+
 REPO = Path(__file__).resolve().parents[1]
 BOARD = REPO / "leaderboard"
 FAST = 200  # rank-group resamples of the boards built here
