@@ -17,7 +17,7 @@ from __future__ import annotations
 import json
 import os
 import shutil
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -237,3 +237,107 @@ def two_entry_board(tmp: Path, data_dir: Path, **expansion_fields: Any) -> Path:
         )
         add_entry(root, data_dir, preds, method, **(expansion_fields if method == "expansion" else {}))
     return root
+
+
+def content_memo(function: Callable[..., Any], keyed: Callable[..., Any] | None = None) -> Callable[..., Any]:
+    """``function`` (pure: its result depends on its arguments only) computed once per distinct input.
+
+    Work that several tests repeat on the same data, made once. The key is the content of
+    every argument (bytes and text; numbers; a numpy array's bytes, dtype and shape; a
+    random generator's state; a mapping's, sequence's or dataclass's items in order), never
+    a name: a call with any other argument (a path, a file object) is made as it is, never
+    kept. Each caller gets its own deep copy of the result, and a random generator it passed
+    is left in the state the call left it in. A call that raises is not kept.
+
+    ``keyed``, given the call's arguments, returns what the key is made of, where an
+    argument does not change the result (a cache of draws that gives the numbers it was
+    given): by default, all of them.
+    """
+    import copy
+    import dataclasses
+    import hashlib
+
+    import numpy as np
+
+    made: dict[str, tuple[Any, list[Any]]] = {}
+
+    class NotContent(Exception):
+        """An argument that is not its content (a path names a file; it does not hold it)."""
+
+    def key(value: Any) -> bytes:
+        if isinstance(value, np.ndarray):
+            data = f"array {value.dtype.str}{value.shape}".encode() + np.ascontiguousarray(value).tobytes()
+        elif isinstance(value, np.random.Generator):
+            data = f"generator {value.bit_generator.state!r}".encode()
+        elif isinstance(value, (bytes, bytearray)):
+            data = b"bytes " + bytes(value)
+        elif value is None or isinstance(value, (str, int, float, np.integer, np.floating)):
+            data = f"{type(value).__qualname__} {value!r}".encode()
+        elif isinstance(value, dict):
+            data = b"dict" + b"".join(key(k) + key(v) for k, v in value.items())
+        elif isinstance(value, (list, tuple)):
+            data = type(value).__name__.encode() + b"".join(key(v) for v in value)
+        elif dataclasses.is_dataclass(value) and not isinstance(value, type):
+            fields = [(f.name, getattr(value, f.name)) for f in dataclasses.fields(value)]
+            data = type(value).__qualname__.encode() + key(fields)
+        else:
+            raise NotContent
+        return len(data).to_bytes(8, "little") + data
+
+    def once(*args: Any, **kwargs: Any) -> Any:
+        try:
+            content = keyed(*args, **kwargs) if keyed is not None else (list(args), kwargs)
+            k = hashlib.sha256(key(content)).hexdigest()
+        except NotContent:
+            return function(*args, **kwargs)
+        generators = [a for a in [*args, *kwargs.values()] if isinstance(a, np.random.Generator)]
+        if k not in made:
+            result = function(*args, **kwargs)
+            made[k] = (copy.deepcopy(result), [g.bit_generator.state for g in generators])
+        result, states = made[k]
+        for g, state in zip(generators, states, strict=True):
+            g.bit_generator.state = state
+        return copy.deepcopy(result)
+
+    return once
+
+
+def memo_each(patch: pytest.MonkeyPatch, *targets: tuple[Any, str]) -> None:
+    """Replace each ``(module, name)`` function by its :func:`content_memo` (undone with ``patch``)."""
+    for module, name in targets:
+        patch.setattr(module, name, content_memo(getattr(module, name)))
+
+
+@pytest.fixture(scope="module")
+def entries_read_once() -> Iterator[None]:
+    """Predictions files and entry metadata parsed once per distinct content in a module (:func:`content_memo`).
+
+    The boards a module builds and checks again and again hold the same files (the
+    committed board's 44 entries in each ``check`` of it): their bytes are parsed once.
+    """
+    from odmd_bench.evaluation import parse
+    from odmd_bench.leaderboard import files
+
+    with pytest.MonkeyPatch.context() as patch:
+        memo_each(patch, (parse, "parse_predictions"), (files, "load_document"))
+        yield
+
+
+@pytest.fixture(scope="module")
+def boards_ranked_once() -> Iterator[None]:
+    """:func:`entries_read_once`, and the rank groups' resampled means made once per distinct errors.
+
+    ``paired_means`` is a pure function of the errors, the resamples, the seed and the set;
+    the draws it is given (:class:`~odmd_bench.evaluation.resampling.SharedDraws`) hold the
+    numbers it would draw (bit for bit), so they are no part of the key.
+    """
+    from odmd_bench.evaluation import compare, parse
+    from odmd_bench.leaderboard import files
+
+    def content(e: Any, n_resamples: Any, seed: Any, name: Any, draws: Any = None) -> Any:
+        return (e, n_resamples, seed, name)
+
+    with pytest.MonkeyPatch.context() as patch:
+        memo_each(patch, (parse, "parse_predictions"), (files, "load_document"))
+        patch.setattr(compare, "paired_means", content_memo(compare.paired_means, content))
+        yield

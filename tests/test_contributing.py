@@ -34,6 +34,9 @@ from odmd_bench.cli.main import cli
 from odmd_bench.leaderboard.site import build_site
 from odmd_bench.leaderboard.speed import THREAD_VARIABLES
 
+#: The boards here hold the same files build after build: each parsed and resampled once (conftest).
+pytestmark = pytest.mark.usefixtures("boards_ranked_once")
+
 REPO = Path(__file__).resolve().parents[1]
 GUIDE = REPO / "CONTRIBUTING.md"
 #: The only words of the page a contributor replaces: where their copy of the release is.

@@ -23,6 +23,9 @@ from odmd_bench.cli.main import cli
 from odmd_bench.errors import UsageError, ValidationError
 from odmd_bench.leaderboard import ranking
 
+#: The boards here hold the same files build after build: each parsed and resampled once (conftest).
+pytestmark = pytest.mark.usefixtures("boards_ranked_once")
+
 REPO = Path(__file__).resolve().parents[1]
 FAST = 200  # resamples for boards built by the tests (the committed board uses lb.RANK_RESAMPLES)
 

@@ -10,12 +10,14 @@ from __future__ import annotations
 import gzip
 import io
 import shlex
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
 import pytest
 import yaml
 from click.testing import CliRunner
+from conftest import content_memo
 
 import odmd_bench
 from odmd_bench import methods
@@ -26,6 +28,20 @@ from odmd_bench.predict.intervals import calibrate_method
 
 ROOT = Path(__file__).resolve().parents[1]
 ENTRIES = ROOT / "leaderboard" / "uncertainty"
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _spreads_made_once() -> Iterator[None]:
+    """The box-size posterior's spread (pure: :func:`content_memo`) computed once per distinct input here.
+
+    Box_LS's spreads of the val sets are the same in three tests: its calibration, its
+    interval command, ``predict --interval``.
+    """
+    from odmd_bench_baselines.robust import spread
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(spread, "posterior_spread", content_memo(spread.posterior_spread))
+        yield
 
 
 def test_calibration_reads_val_only(v1_data_dir: Path, monkeypatch: pytest.MonkeyPatch) -> None:

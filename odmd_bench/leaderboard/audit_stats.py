@@ -81,9 +81,18 @@ def bootstrap_intervals(
 
 
 def assess_with(
-    found: Collected, n_permutations: int, *, progress: Callable[[str], None] | None = None
+    found: Collected,
+    n_permutations: int,
+    *,
+    progress: Callable[[str], None] | None = None,
+    pvalues: tuple[Mapping[str, np.ndarray], np.ndarray] | None = None,
 ) -> dict[str, Any]:
-    """The test of ``found`` with ``n_permutations`` per test: the intervals, Holm, the flags; the audit's data."""
+    """The test of ``found`` with ``n_permutations`` per test: the intervals, Holm, the flags; the audit's data.
+
+    ``pvalues``: the permutation p-values when they are already drawn, from this seed's stream
+    with ``n_permutations`` (``leaderboard check --audits`` draws them with their ranges, in
+    one pass of relabellings); drawn here otherwise.
+    """
     seed, sets, audited, c, f = (
         found.header["seed"],
         list(found.header["sets"]),
@@ -96,7 +105,9 @@ def assess_with(
     if audited:
         if progress is not None:
             progress(f"testing {len(audited)} entries: {n_permutations:,} permutations per test")
-        p_sets, p_all = permutation_pvalues(c, f, keyed_stream(seed, PERMUTATION_KEY), n_permutations)
+        if pvalues is None:
+            pvalues = permutation_pvalues(c, f, keyed_stream(seed, PERMUTATION_KEY), n_permutations)
+        p_sets, p_all = pvalues
         ci_sets, ci_all = bootstrap_intervals(f, keyed_stream(seed, BOOTSTRAP_KEY))
         # Holm over every entry and test at once, flattened entry-major
         flat = np.column_stack([*(p_sets[s] for s in sets), p_all]).ravel()
