@@ -12,6 +12,7 @@ the same on every machine. A NaN (an unknown observation depth) is written as ``
 from __future__ import annotations
 
 import json
+
 import numpy as np
 
 from odmd_bench.data.examples import Examples
