@@ -358,6 +358,29 @@ def test_a_refused_description_writes_no_set_out(v1_data_dir: Path, monkeypatch:
     assert len(e.value.problems) == 7 and all(p.endswith(": not given") for p in e.value.problems)
 
 
+def test_one_build_writes_a_set_it_meets_again_once_and_the_same(
+    v1_data_dir: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``made`` (what a site build passes for all its benchmarks): a set already made is not made again."""
+    from odmd_bench.data.croissant import description
+
+    b = get_benchmark("odmd-v1")
+    splits = {s: odmd_bench.load_split(s, b, v1_data_dir) for s in b.splits}
+    alone = croissant(b, splits)
+    made: dict[str, bytes] = {}
+    first = croissant(b, splits, made)
+    assert first == alone and len(made) == 8
+    make = description.set_file_bytes
+    calls = []
+
+    def counted(examples: Examples) -> bytes:
+        calls.append(examples)
+        return make(examples)
+
+    monkeypatch.setattr(description, "set_file_bytes", counted)
+    assert croissant(b, splits, made) == alone and calls == []
+
+
 def test_cli_text_and_usage(v1_data_dir: Path, tmp_path: Path) -> None:
     runner = CliRunner()
     r = runner.invoke(cli, ["describe", "odmd-v1", "--data-dir", str(v1_data_dir)])
