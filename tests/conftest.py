@@ -243,13 +243,14 @@ def two_entry_board(tmp: Path, data_dir: Path, **expansion_fields: Any) -> Path:
 def croissant_set_files_made_once(tmp_path_factory: pytest.TempPathFactory) -> Iterator[None]:
     """While a module runs, :func:`~odmd_bench.data.croissant.croissant` makes each set's JSON file once per run.
 
-    The JSON file of a set (a few seconds for an odmd-v1 set) is a function of its arrays
-    alone, so the bytes are kept under the SHA-256 of those arrays (``content_sha256``,
-    computed here from the arrays, never read from an attribute), in a folder all the run's
-    processes share; a set met again (odmd-v1 described by the CLI, by a site build, by the
-    other benchmark that holds the same robot set) gets the bytes made the first time.
-    ``set_file_bytes`` itself is tested directly (tests/test_croissant.py), never through
-    this. What it refuses (an infinite value) is refused each time, never kept.
+    The JSON file of a set (0.2 to 0.6 s each, about 2.5 s for odmd-v1's eight) is a function
+    of its arrays alone, so the bytes are kept under the SHA-256 of those arrays
+    (``content_sha256``, computed here from the arrays, never read from an attribute), in a
+    folder all the run's processes share (:func:`run_folder`); a set met again (odmd-v1
+    described by the CLI, by a site build, by the other benchmark that holds the same robot
+    set) gets the bytes made the first time. ``set_file_bytes`` itself is tested directly
+    (tests/test_croissant.py), never through this. What it refuses (an infinite value) is
+    refused each time, never kept.
     """
     from odmd_bench.data.croissant import description
     from odmd_bench.data.hashing import content_sha256, set_arrays
