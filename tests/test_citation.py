@@ -24,6 +24,11 @@ ZENODO = REPO / ".zenodo.json"
 FAST = 200
 
 
+@pytest.fixture(scope="module", autouse=True)
+def _set_files_once(croissant_set_files_made_once: None) -> None:
+    """Each set's Croissant JSON file made once in the run (tests/conftest.py)."""
+
+
 def test_citation_cff_passes_cffconvert_validate(tmp_path: Path) -> None:
     if os.environ.get("CI"):  # in the dev extra: CI must have it
         from cffconvert.cli.create_citation import create_citation

@@ -6,9 +6,11 @@ load_split's arrays, bit for bit.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import os
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -32,6 +34,11 @@ else:
 # mlcroissant (1.1) builds its graph with rdflib's ConjunctiveGraph, which rdflib 7.1+ deprecates:
 # their warning, not ours.
 pytestmark = pytest.mark.filterwarnings("ignore:ConjunctiveGraph is deprecated:DeprecationWarning")
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _set_files_once(croissant_set_files_made_once: None) -> None:
+    """Each set's JSON file made once in the run (tests/conftest.py); set_file_bytes is tested directly."""
 
 
 def _describe(benchmark: str, data_dir: Path, out: Path) -> Path:
@@ -67,9 +74,21 @@ def _records(ds: Any, record_set: str) -> list[dict[str, Any]]:
     return list(ds.records(record_set))
 
 
+@functools.cache
+def _read(path: Path) -> Any:
+    """The description as mlcroissant reads it, once per module (the tests only read from it)."""
+    return mlc.Dataset(str(path))
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _readings_forgotten() -> Iterator[None]:
+    yield
+    _read.cache_clear()
+
+
 def _dataset(path: Path) -> Any:
     """The description read by mlcroissant; it raises on any error of the description."""
-    ds = mlc.Dataset(str(path))
+    ds = _read(path)
     assert not ds.metadata.ctx.issues.errors
     return ds
 
@@ -211,6 +230,98 @@ def test_an_infinite_value_is_refused_not_written() -> None:
         set_file_bytes(bad)
 
 
+def _reference_set_file_bytes(examples: Examples) -> bytes:
+    """set_file_bytes as it was written first, the reference the faster one must equal byte for byte.
+
+    Each array as nested lists, NaN as None through an object array, then one json.dumps of
+    the whole with sorted keys.
+    """
+    from odmd_bench.data.croissant.set_files import DATA_TYPES
+    from odmd_bench.data.hashing import set_arrays
+
+    def plain(a: np.ndarray) -> Any:
+        if a.dtype.kind == "f":
+            if np.isinf(a).any():
+                raise DataError("an array holds an infinite value, which JSON cannot carry")
+            nan = np.isnan(a)
+            if nan.any():
+                obj = a.astype(object)
+                obj[nan] = None
+                return obj.tolist()
+        return a.tolist()
+
+    body: dict[str, Any] = {"index": list(range(len(examples)))}
+    for name, a in set_arrays(examples).items():
+        if a.dtype.kind not in DATA_TYPES:
+            raise DataError(f"array {name!r} has dtype {a.dtype}, which the Croissant export does not carry")
+        body[name] = plain(np.asarray(a))
+    return json.dumps(body, sort_keys=True, separators=(",", ":"), allow_nan=False).encode("ascii")
+
+
+def _edge_sets() -> dict[str, Examples]:
+    """Small sets at the edges: NaN in every float array, -0.0, other dtypes, odd names, no example."""
+    ex = _tricky()
+    nan_everywhere = Examples(
+        boxes=np.where(np.eye(4, dtype=bool)[:2], np.nan, -0.0)[None],
+        detected=ex.detected,
+        camera=np.full((1, 2, 3), np.nan),
+        depth=np.array([np.nan]),
+        observation_depth=np.array([[np.nan, np.nan]]),
+        extras={
+            "index": np.array([[np.nan, 5e-324]]),  # an extra named as the index column replaces it
+            'é"\\ NaN': np.array([[1.5, np.nan]], dtype=np.float32),  # a key to escape, holding "NaN"
+            "u": np.array([[255, 0]], dtype=np.uint8),
+            "nested": np.full((1, 2, 2, 2), np.nan),
+        },
+    )
+    empty = Examples(
+        boxes=np.zeros((0, 2, 4)),
+        detected=np.zeros((0, 2), dtype=bool),
+        camera=np.zeros((0, 2, 3)),
+        depth=np.zeros(0),
+        extras={"none_per_example": np.zeros((0, 0))},
+    )
+    hollow = Examples(
+        boxes=ex.boxes, detected=ex.detected, camera=ex.camera, depth=ex.depth, extras={"e": np.zeros((1, 0))}
+    )
+    return {"tricky": ex, "nan everywhere": nan_everywhere, "empty": empty, "hollow": hollow}
+
+
+def _assert_reference_bytes(sets: dict[str, Examples]) -> None:
+    for name, ex in sets.items():
+        assert set_file_bytes(ex) == _reference_set_file_bytes(ex), name
+
+
+def test_the_json_of_a_set_is_the_reference_s_byte_for_byte_and_so_are_its_refusals(
+    v1_data_dir: Path, tmp_path: Path
+) -> None:
+    """Generated sets (every extra), the committed robot sets (NaN depths), KITTI (integer arrays), edges."""
+    v1 = odmd_bench.load_split("val", "odmd-v1", v1_data_dir, sets=["normal", "robot"])
+    sets = {f"odmd-v1 val {k}": v for k, v in v1.items()}
+    kitti = odmd_bench.load_split("test", "kitti-tracking", tmp_path)  # (copied there from splits/)
+    sets |= {f"kitti {k}": v for k, v in kitti.items()}
+    _assert_reference_bytes(sets | _edge_sets())
+    ex = _tricky()
+    for extras in (
+        {"weird": np.array([[np.inf, 0.0]])},
+        {"c": np.array([[1j, 0]]), "weird": np.array([[-np.inf, 0.0]])},  # the first problem is said
+        {"weird": np.array([[np.nan, -np.inf]]), "c": np.array([[1j, 0]])},
+        {"s": np.array([["a", "b"]])},
+    ):
+        bad = Examples(boxes=ex.boxes, detected=ex.detected, camera=ex.camera, depth=ex.depth, extras=extras)
+        with pytest.raises(DataError) as want:
+            _reference_set_file_bytes(bad)
+        with pytest.raises(DataError) as got:
+            set_file_bytes(bad)
+        assert str(got.value) == str(want.value)
+
+
+def test_the_json_of_an_imported_set_is_the_reference_s_byte_for_byte(paper_data_dir: Path) -> None:
+    """Sets of the original release: odms-detection's driving set holds a few NaN depths, its robot set none."""
+    sets = odmd_bench.load_split("val", "odms-detection", paper_data_dir, sets=["driving", "robot"])
+    _assert_reference_bytes(sets)
+
+
 def test_a_set_that_is_not_its_pinned_version_is_not_described(v1_data_dir: Path) -> None:
     b = get_benchmark("odmd-v1")
     splits = {s: odmd_bench.load_split(s, b, v1_data_dir) for s in b.splits}
@@ -245,6 +356,29 @@ def test_a_refused_description_writes_no_set_out(v1_data_dir: Path, monkeypatch:
     with pytest.raises(DataError) as e:
         croissant(b, {"test": {"robot": robot}})
     assert len(e.value.problems) == 7 and all(p.endswith(": not given") for p in e.value.problems)
+
+
+def test_one_build_writes_a_set_it_meets_again_once_and_the_same(
+    v1_data_dir: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``made`` (what a site build passes for all its benchmarks): a set already made is not made again."""
+    from odmd_bench.data.croissant import description
+
+    b = get_benchmark("odmd-v1")
+    splits = {s: odmd_bench.load_split(s, b, v1_data_dir) for s in b.splits}
+    alone = croissant(b, splits)
+    made: dict[str, bytes] = {}
+    first = croissant(b, splits, made)
+    assert first == alone and len(made) == 8
+    make = description.set_file_bytes
+    calls = []
+
+    def counted(examples: Examples) -> bytes:
+        calls.append(examples)
+        return make(examples)
+
+    monkeypatch.setattr(description, "set_file_bytes", counted)
+    assert croissant(b, splits, made) == alone and calls == []
 
 
 def test_cli_text_and_usage(v1_data_dir: Path, tmp_path: Path) -> None:

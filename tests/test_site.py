@@ -45,6 +45,11 @@ CHROMIUM = Path("/usr/bin/chromium")
 INSTALL = "apt-get install -y chromium (Debian's), and playwright's Python package (pip install -e '.[dev]')"
 
 
+@pytest.fixture(scope="module", autouse=True)
+def _set_files_once(croissant_set_files_made_once: None) -> None:
+    """Each set's Croissant JSON file made once in the run (tests/conftest.py)."""
+
+
 # ----------------------------------------------------------------------------- parsing
 
 

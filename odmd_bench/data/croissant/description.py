@@ -26,7 +26,7 @@ from odmd_bench.data.croissant.vocabulary import (
     SUFFIX,
 )
 from odmd_bench.data.examples import Examples
-from odmd_bench.data.hashing import set_arrays
+from odmd_bench.data.hashing import content_sha256, set_arrays
 from odmd_bench.data.manifests import manifest
 from odmd_bench.data.registry import Benchmark
 from odmd_bench.errors import DataError
@@ -70,7 +70,7 @@ def _field(rs: str, name: str, a: np.ndarray, file_id: str) -> dict[str, Any]:
 
 
 def croissant(
-    benchmark: Benchmark, splits: Mapping[str, Mapping[str, Examples]]
+    benchmark: Benchmark, splits: Mapping[str, Mapping[str, Examples]], made: dict[str, bytes] | None = None
 ) -> tuple[dict[str, Any], dict[str, bytes]]:
     """The Croissant description of a benchmark and the data files it describes.
 
@@ -78,6 +78,10 @@ def croissant(
         benchmark: the benchmark.
         splits: ``{split: {set: examples}}``, every split and set of it, loaded and
             verified (:func:`odmd_bench.load_split`).
+        made: set files already made, by the SHA-256 of their arrays (``content_sha256``,
+            computed from them), filled as they are made: one build describing several
+            benchmarks that hold the same set (odmd-v1 and odmd-paper share the robot sets)
+            writes its file once. A set's file is a function of its arrays alone.
 
     Returns:
         ``(description, {path relative to the description: bytes})``: the JSON-LD as a dict
@@ -109,7 +113,13 @@ def croissant(
             ex = splits[split][set_name]
             pin = pins.get(split, {}).get(set_name, {})
             path = set_file_name(benchmark, split, set_name)
-            data = set_file_bytes(ex)
+            if made is None:
+                data = set_file_bytes(ex)
+            else:
+                key = content_sha256(set_arrays(ex))
+                if key not in made:
+                    made[key] = set_file_bytes(ex)
+                data = made[key]
             files[path] = data
             rs = f"{split}/{set_name}"
             licence = _licence(pin)

@@ -12,7 +12,6 @@ the same on every machine. A NaN (an unknown observation depth) is written as ``
 from __future__ import annotations
 
 import json
-from typing import Any
 
 import numpy as np
 
@@ -24,23 +23,29 @@ from odmd_bench.errors import DataError
 #: Croissant data types by numpy kind.
 DATA_TYPES = {"f": "cr:Float64", "b": "sc:Boolean", "i": "sc:Integer", "u": "sc:Integer"}
 
+#: JSON without whitespace.
+_COMPACT = (",", ":")
+
 
 def set_file_name(benchmark: Benchmark, split: str, set_name: str) -> str:
     """Where a set's JSON file lies, relative to the description: ``BENCHMARK/SPLIT/SET.json``."""
     return f"{benchmark.name}/{split}/{set_name}.json"
 
 
-def _plain(a: np.ndarray) -> Any:
-    """An array as nested lists of Python values, NaN as None (JSON null)."""
-    if a.dtype.kind == "f":
-        if np.isinf(a).any():
-            raise DataError("an array holds an infinite value, which JSON cannot carry")
-        nan = np.isnan(a)
-        if nan.any():  # only then the slower object array: None where NaN
-            obj = a.astype(object)
-            obj[nan] = None
-            return obj.tolist()
-    return a.tolist()
+def _text(name: str, a: np.ndarray) -> str:
+    """An array as JSON text, one item per example (nested lists), NaN as null.
+
+    NaN is written as the token ``NaN`` first (``allow_nan``), then replaced by ``null``: in the
+    text of one array that token can stand nowhere else (numbers, ``true``, ``false``, brackets
+    and commas only; infinite values are refused before, so no ``Infinity`` token exists). This
+    writes the same bytes as turning NaN into None in an object array, without that array.
+    """
+    if a.dtype.kind not in DATA_TYPES:
+        raise DataError(f"array {name!r} has dtype {a.dtype}, which the Croissant export does not carry")
+    if a.dtype.kind == "f" and np.isinf(a).any():
+        raise DataError("an array holds an infinite value, which JSON cannot carry")
+    text = json.dumps(a.tolist(), separators=_COMPACT, allow_nan=True, check_circular=False)
+    return text.replace("NaN", "null") if a.dtype.kind == "f" else text
 
 
 def set_file_bytes(examples: Examples) -> bytes:
@@ -53,10 +58,9 @@ def set_file_bytes(examples: Examples) -> bytes:
     Raises:
         DataError: an array of a kind JSON cannot carry exactly (complex, text, infinite values).
     """
-    arrays = set_arrays(examples)
-    body: dict[str, Any] = {"index": list(range(len(examples)))}
-    for name, a in arrays.items():
-        if a.dtype.kind not in DATA_TYPES:
-            raise DataError(f"array {name!r} has dtype {a.dtype}, which the Croissant export does not carry")
-        body[name] = _plain(np.asarray(a))
-    return json.dumps(body, sort_keys=True, separators=(",", ":"), allow_nan=False).encode("ascii")
+    texts = {"index": json.dumps(list(range(len(examples))), separators=_COMPACT)}
+    for name, a in set_arrays(examples).items():
+        texts[name] = _text(name, np.asarray(a))
+    # json.dumps(..., sort_keys=True) of the whole: keys in sorted order, each as JSON (ASCII)
+    body = ",".join(f"{json.dumps(key)}:{texts[key]}" for key in sorted(texts))
+    return ("{" + body + "}").encode("ascii")
