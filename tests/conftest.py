@@ -349,8 +349,8 @@ def croissant_set_files_made_once(tmp_path_factory: pytest.TempPathFactory) -> I
 
     The JSON file of a set (0.2 to 0.6 s each, about 2.5 s for odmd-v1's eight) is a function
     of its arrays alone, so the bytes are kept under the SHA-256 of those arrays
-    (``content_sha256``, computed here from the arrays, never read from an attribute), in a
-    folder all the run's processes share (:func:`run_folder`); a set met again (odmd-v1
+    (``content_sha256``, computed here from the arrays, never read from an attribute), each in
+    a folder of its own made once for the run (:func:`made_once`); a set met again (odmd-v1
     described by the CLI, by a site build, by the other benchmark that holds the same robot
     set) gets the bytes made the first time. ``set_file_bytes`` itself is tested directly
     (tests/test_croissant.py), never through this. What it refuses (an infinite value) is
@@ -360,19 +360,14 @@ def croissant_set_files_made_once(tmp_path_factory: pytest.TempPathFactory) -> I
     from odmd_bench.data.hashing import content_sha256, set_arrays
 
     make = description.set_file_bytes
-    folder = run_folder(tmp_path_factory) / "croissant-set-files"
-    folder.mkdir(exist_ok=True)
 
-    def made_once(examples: Any) -> bytes:
-        path = folder / f"{content_sha256(set_arrays(examples))}.json"
-        with FileLock(path.with_suffix(".lock")):
-            if not path.exists():
-                data = make(examples)
-                path.with_suffix(".tmp").write_bytes(data)
-                path.with_suffix(".tmp").replace(path)
-                return data
-        return path.read_bytes()
+    def set_file_once(examples: Any) -> bytes:
+        def write(folder: Path) -> None:
+            (folder / "set.json").write_bytes(make(examples))
+
+        key = content_sha256(set_arrays(examples))
+        return (made_once(tmp_path_factory, f"croissant-set-{key}", write) / "set.json").read_bytes()
 
     with pytest.MonkeyPatch.context() as patch:
-        patch.setattr(description, "set_file_bytes", made_once)
+        patch.setattr(description, "set_file_bytes", set_file_once)
         yield
