@@ -114,14 +114,7 @@ def own_names() -> list[str]:
 
 def accepting(keyword: str) -> list[str]:
     """The registered methods that take option ``keyword`` (those that load), sorted."""
-    taking = []
-    for name in names():
-        try:
-            if load(name).accepts(keyword):
-                taking.append(name)
-        except UsageError:
-            continue
-    return taking
+    return _loading_where(lambda method: method.accepts(keyword))
 
 
 def check_options(method: Method, options: Mapping[str, Any], spell: Callable[[str], str] = str) -> None:
@@ -161,11 +154,16 @@ def _source(ep: metadata.EntryPoint) -> str:
 
 def declaring(name: str) -> list[str]:
     """The registered methods that declare option ``name`` (a keyword; those that load), sorted."""
+    return _loading_where(lambda method: method.option(name) is not None)
+
+
+def _loading_where(holds: Callable[[Method], bool]) -> list[str]:
+    """The names, sorted, of the registered methods that load and of which ``holds`` is true."""
     out = []
-    for n in names():
+    for name in names():
         try:
-            if load(n).option(name) is not None:
-                out.append(n)
+            if holds(load(name)):
+                out.append(name)
         except UsageError:
             continue
     return out
