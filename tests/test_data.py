@@ -46,6 +46,39 @@ def test_content_hash_ignores_the_container_but_not_the_numbers() -> None:
     assert content_sha256(a) != content_sha256({"y": a["x"]})
 
 
+def test_content_hash_is_the_documented_one_for_every_kind_of_array() -> None:
+    """The hash reads the arrays' bytes in place; the reference copies them, as the docstring says."""
+    import hashlib
+    import json
+
+    def reference(arrays: dict[str, np.ndarray]) -> str:
+        h = hashlib.sha256()
+        for name in sorted(arrays):
+            a = np.asarray(arrays[name])
+            dt = a.dtype.newbyteorder("<")
+            a = np.ascontiguousarray(a, dtype=dt)
+            h.update(json.dumps([name, dt.str, list(a.shape)], separators=(",", ":")).encode() + b"\n")
+            h.update(a.tobytes())
+        return h.hexdigest()
+
+    kinds = {
+        "empty": np.zeros((0, 10, 4)),
+        "empty_middle": np.zeros((3, 0, 4), np.float32),
+        "scalar": np.array(2.5),
+        "bool": np.array([[True, False, True]]),
+        "big_endian": np.arange(12, dtype=">i4").reshape(3, 4),
+        "strided": np.arange(40.0).reshape(5, 8)[::2, 1::3],
+        "fortran": np.asfortranarray(np.arange(6.0).reshape(2, 3)),
+        "text": np.array(["ab", "c"]),
+        "uint8": np.arange(7, dtype=np.uint8),
+    }
+    for name, a in kinds.items():
+        assert content_sha256({name: a}) == reference({name: a}), name
+    assert content_sha256(kinds) == reference(kinds)
+    objects = {"o": np.array([1.5, "x"], dtype=object)}  # its "bytes" are pointers: hashed as copied
+    assert content_sha256(objects) == reference(objects)
+
+
 def test_existing_right_files_are_reused(tmp_path) -> None:
     first = ensure_generated("odmd-v1", ["val"], tmp_path)
     mtime = os.stat(first["val"]["path"]).st_mtime_ns

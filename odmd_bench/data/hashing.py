@@ -57,7 +57,9 @@ def content_sha256(arrays: Mapping[str, np.ndarray]) -> str:
         a = np.ascontiguousarray(a, dtype=dt)
         header = json.dumps([name, dt.str, list(a.shape)], separators=_COMPACT)
         h.update(header.encode() + b"\n")
-        h.update(a.tobytes())
+        # the bytes in place (a flat byte view of the contiguous array), not a copy; an
+        # object array's "bytes" are its pointers, which no file's hash matches
+        h.update(a.tobytes() if a.dtype.hasobject else a.reshape(-1).view(np.uint8).data)
     return h.hexdigest()
 
 

@@ -178,13 +178,13 @@ def read_set(
             missing = [k for k in CORE_ARRAYS if k not in g]
             if missing:
                 raise DataError(f"{where} lacks the arrays {', '.join(missing)}; {hint}")
-            shapes = _member_problems(g)
+            members, shapes = _members(g)
             if shapes:
                 raise DataError(f"{where} is not a set of examples; {hint}", shapes)
             try:
-                arrays = {k: g[k][()] for k in g}
+                arrays = {k: m[()] for k, m in members.items()}
             except MemoryError:
-                size = sum(g[k].size * g[k].dtype.itemsize for k in g)
+                size = sum(m.size * m.dtype.itemsize for m in members.values())
                 raise DataError(
                     f"{where}: its arrays ({size:,} bytes) do not fit in memory; {hint}"
                 ) from None
@@ -221,29 +221,33 @@ def read_set(
 FILE_IDENTITY = ("benchmark", "split")
 
 
-def _member_problems(g: Any) -> list[str]:
-    """What is wrong with the members of set group ``g``, looked at without reading them.
+def _members(g: Any) -> tuple[dict[str, Any], list[str]]:
+    """The members of set group ``g`` in file order, and what is wrong with them, looked at without reading them.
 
     Every member must be an array of one example per row: ``boxes`` (N, n_obs, 4) and
     nothing larger than it, so that a damaged or hostile file cannot make a reader
-    allocate more than the set's size.
+    allocate more than the set's size. Each member is looked up once (an HDF5 lookup
+    costs more than many small arrays' reading).
     """
     import h5py
 
     boxes = g["boxes"]
     if not isinstance(boxes, h5py.Dataset) or len(boxes.shape) != 3 or boxes.shape[2] != 4:
-        return [f"boxes must be an (N, n_obs, 4) array, got {getattr(boxes, 'shape', type(boxes).__name__)}"]
+        return {}, [
+            f"boxes must be an (N, n_obs, 4) array, got {getattr(boxes, 'shape', type(boxes).__name__)}"
+        ]
     n = boxes.shape[0]
+    members: dict[str, Any] = {}
     problems = []
     for k in g:
-        m = g[k]
+        m = members[k] = boxes if k == "boxes" else g[k]
         if not isinstance(m, h5py.Dataset):
             problems.append(f"{k!r} is a {type(m).__name__}, not an array")
         elif not m.shape or m.shape[0] != n:
             problems.append(f"{k!r} has shape {m.shape}; every array has one row per example ({n})")
         elif m.size > boxes.size:
             problems.append(f"{k!r} has {m.size:,} values, more than boxes' {boxes.size:,}")
-    return problems
+    return members, problems
 
 
 def _identity_problems(
