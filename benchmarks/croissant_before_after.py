@@ -14,17 +14,16 @@ count). Prints, per set, the two medians and whether the bytes are the same (the
 
 from __future__ import annotations
 
-import argparse
 import importlib.util
-import platform
 import statistics
 import subprocess
 import sys
-import tempfile
 import time
 from collections.abc import Callable
 from pathlib import Path
 from types import ModuleType
+
+from before_sets import arguments, cpu_model, data_folder
 
 from odmd_bench import Examples
 
@@ -51,29 +50,16 @@ def _cpu(f: Callable[[Examples], bytes], ex: Examples) -> tuple[float, bytes]:
 
 def main() -> None:
     """Time both on every set and print a line per set, then the totals."""
-    parser = argparse.ArgumentParser()
-    parser.add_argument("rev", nargs="?", default="HEAD~1")
-    parser.add_argument("--original", help="the original release's folder (odmd-paper, odms-detection)")
-    args = parser.parse_args()
+    args = arguments(__doc__.split("\n", 1)[0])
 
     from odmd_bench import load_split
     from odmd_bench.data.croissant.set_files import set_file_bytes
-    from odmd_bench.data.importer import import_release
     from odmd_bench.data.registry import get_benchmark
-    from odmd_bench.data.store import ensure_generated
 
-    work = Path(tempfile.mkdtemp(prefix="odmd-croissant-before-after-"))
+    work, data = data_folder("odmd-croissant-before-after-", args.original)
     before = _module_of(args.rev, work).set_file_bytes
-    data = work / "data"
-    ensure_generated("odmd-v1", ("val", "test"), data)
-    names = ["odmd-v1", "kitti-tracking"]
-    if args.original:
-        import_release(args.original, data)
-        names += ["odmd-paper", "odms-detection"]
-    cpu = subprocess.run(["grep", "-m1", "model name", "/proc/cpuinfo"], capture_output=True, text=True)
-    print(
-        f"{args.rev} -> this checkout; {cpu.stdout.strip() or platform.processor()}; CPU seconds, median of {ROUNDS}"
-    )
+    names = ["odmd-v1", "kitti-tracking"] + (["odmd-paper", "odms-detection"] if args.original else [])
+    print(f"{args.rev} -> this checkout; {cpu_model()}; CPU seconds, median of {ROUNDS}")
     totals = {"before": 0.0, "after": 0.0}
     same_everywhere = True
     for name in names:

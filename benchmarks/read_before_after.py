@@ -16,15 +16,15 @@ the median over the rounds of each.
 
 from __future__ import annotations
 
-import argparse
 import json
 import os
-import platform
 import statistics
 import subprocess
 import sys
-import tempfile
 from pathlib import Path
+
+from before_after import _extract  # git archive of the commit into a folder
+from before_sets import arguments, cpu_model, data_folder
 
 ROUNDS = 5
 REPEATS = 10
@@ -56,11 +56,6 @@ print(json.dumps({"ms": ms, "sets": len(sets), "digest": digest.hexdigest()}))
 """
 
 
-def _extract(rev: str, into: Path) -> None:
-    archive = subprocess.run(["git", "archive", rev], check=True, capture_output=True).stdout
-    subprocess.run(["tar", "-x", "-C", str(into)], input=archive, check=True)
-
-
 def _run(tree: Path, data: Path) -> dict[str, object]:
     env = {**os.environ, "PYTHONPATH": str(tree), "OPENBLAS_NUM_THREADS": "1"}
     out = subprocess.run(
@@ -76,25 +71,13 @@ def _run(tree: Path, data: Path) -> dict[str, object]:
 
 def main() -> None:
     """Time both trees, alternating, and print the medians."""
-    parser = argparse.ArgumentParser()
-    parser.add_argument("rev", nargs="?", default="HEAD~1")
-    parser.add_argument("--original", help="the original release's folder (odmd-paper, odms-detection)")
-    args = parser.parse_args()
-
-    from odmd_bench.data.importer import import_release
-    from odmd_bench.data.store import ensure_generated
-
-    work = Path(tempfile.mkdtemp(prefix="odmd-read-before-after-"))
+    args = arguments(__doc__.split("\n", 1)[0])
+    work, data = data_folder("odmd-read-before-after-", args.original)
     before = work / "before"
     before.mkdir()
     _extract(args.rev, before)
-    data = work / "data"
-    ensure_generated("odmd-v1", ("val", "test"), data)
-    if args.original:
-        import_release(args.original, data)
     trees = {"before": before, "after": Path.cwd()}
-    cpu = subprocess.run(["grep", "-m1", "model name", "/proc/cpuinfo"], capture_output=True, text=True)
-    print(f"{args.rev} -> this checkout; {cpu.stdout.strip() or platform.processor()}")
+    print(f"{args.rev} -> this checkout; {cpu_model()}")
     times: dict[str, list[float]] = {"before": [], "after": []}
     digests = set()
     for r in range(ROUNDS):
