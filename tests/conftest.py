@@ -324,21 +324,19 @@ def entries_read_once() -> Iterator[None]:
 
 
 @pytest.fixture(scope="module")
-def boards_ranked_once() -> Iterator[None]:
+def boards_ranked_once(entries_read_once: None) -> Iterator[None]:
     """:func:`entries_read_once`, and the rank groups' resampled means made once per distinct errors.
 
     ``paired_means`` is a pure function of the errors, the resamples, the seed and the set;
     the draws it is given (:class:`~odmd_bench.evaluation.resampling.SharedDraws`) hold the
     numbers it would draw (bit for bit), so they are no part of the key.
     """
-    from odmd_bench.evaluation import compare, parse
-    from odmd_bench.leaderboard import files
+    from odmd_bench.evaluation import compare
 
     def content(e: Any, n_resamples: Any, seed: Any, name: Any, draws: Any = None) -> Any:
         return (e, n_resamples, seed, name)
 
     with pytest.MonkeyPatch.context() as patch:
-        memo_each(patch, (parse, "parse_predictions"), (files, "load_document"))
         patch.setattr(compare, "paired_means", content_memo(compare.paired_means, content))
         yield
 

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 import yaml
 from click.testing import CliRunner
-from conftest import content_memo
+from conftest import memo_each
 
 import odmd_bench
 from odmd_bench import methods
@@ -40,7 +40,7 @@ def _spreads_made_once() -> Iterator[None]:
     from odmd_bench_baselines.robust import spread
 
     with pytest.MonkeyPatch.context() as patch:
-        patch.setattr(spread, "posterior_spread", content_memo(spread.posterior_spread))
+        memo_each(patch, (spread, "posterior_spread"))
         yield
 
 
