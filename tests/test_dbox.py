@@ -127,21 +127,16 @@ def test_fast_forward_gradients_match_the_reference(n_obs: int) -> None:
     _assert_same_grads(fast, ref, rtol=1e-10)
 
 
-@pytest.mark.parametrize("onednn", [True, False], ids=["onednn", "plain-torch"])
-def test_float32_paths_match_the_reference(onednn: bool) -> None:
-    """Both float32 CPU paths give the reference's numbers to float32 rounding.
+def test_float32_path_matches_the_reference() -> None:
+    """The float32 CPU path gives the reference's numbers to float32 rounding.
 
-    The paths: oneDNN's kernel and plain torch products; checked, forward and backward, with and without gradients.
+    Checked forward and backward, with and without gradients.
     """
-    if onednn and not model_module.onednn_available():
-        pytest.skip("this torch build has no oneDNN")
     model = DBox(generator=torch.Generator().manual_seed(5))
     x = torch.from_numpy(make_inputs(_examples(300, 6), "rel").x)
-    with model_module.kernels("1" if onednn else "0"):
-        assert model_module.use_onednn(True) is model_module.use_onednn(False) is onednn
-        out, fast = _grads(model, model, x)
-        with torch.no_grad():
-            inference = model(x)
+    out, fast = _grads(model, model, x)
+    with torch.no_grad():
+        inference = model(x)
     ref_out, ref = _grads(model, lambda x: reference_forward(model, x), x)
     assert torch.equal(inference, out)  # the inference path is the same arithmetic
     assert float((out - ref_out).abs().max()) <= 1e-5 * float(ref_out.abs().max())
@@ -167,51 +162,50 @@ def test_linear_reads_every_operand_layout() -> None:
         "transposed block": big_w[:20, :8].t(),
     }
     add = torch.randn(40, 8, generator=g)
-    kernels = [False, True] if model_module.onednn_available() else [False]
     for (xn, x), (wn, w) in [(a, b) for a in xs.items() for b in ws.items()]:
         assert x.shape == (40, 20) and w.shape == (8, 20), (xn, wn)
         want = x @ w.t()
-        for fast in kernels:
-            for got in (
-                model_module._linear(x, w, fast=fast),
-                model_module._linear(x, w, add=add, fast=fast) - add,
-            ):
-                assert float((got - want).abs().max()) < 1e-4, (xn, wn, fast)
+        for got in (model_module._linear(x, w), model_module._linear(x, w, add=add) - add):
+            assert float((got - want).abs().max()) < 1e-4, (xn, wn)
 
 
 def test_the_kernel_rule_never_times_anything(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
-    """Auto is plain products, for training and inference, and no clock is read to decide.
+    """Every setting a recorded command had runs the same products; no clock is read to decide.
 
-    A choice made by timing both kernels flipped on a busy machine (issue 38: two of six
-    runs of one command trained different weights), and the two differ at float32
-    rounding. 0 and 1 override; both kernels give the same numbers to float32 rounding on
-    every pass.
+    A choice made by timing two kernels flipped on a busy machine (issue 38: two of six
+    runs of one command trained different weights). Since issue 44 dropped the oneDNN
+    kernel, ``ODMD_BENCH_ONEDNN`` unset, ``auto``, ``0`` and ``1`` give the same numbers
+    bit for bit, and any other value is refused.
     """
     read_by_model: list[str] = []
     clock = time.perf_counter
 
     def watched() -> float:
         caller = sys._getframe(1).f_globals.get("__name__", "")
-        if caller.startswith("odmd_bench_baselines.dbox.model"):
+        if caller.startswith(("odmd_bench_baselines.dbox.model", "odmd_bench_baselines.dbox.kernels")):
             read_by_model.append(caller)
         return clock()
 
     monkeypatch.setattr(time, "perf_counter", watched)
     monkeypatch.delenv("ODMD_BENCH_ONEDNN", raising=False)
-    assert model_module.use_onednn(True) is False and model_module.use_onednn(False) is False
     train("p", 2, tmp_path / "run", device="cpu", val_sets=_tiny_val(), batch_size=16, progress=None)
     record = json.loads((tmp_path / "run" / "dbox_p.json").read_text())
-    assert record["cpu_kernels"] == "plain" and read_by_model == []
-    monkeypatch.setenv("ODMD_BENCH_ONEDNN", "auto")
-    assert model_module.use_onednn(True) is False
-    monkeypatch.setenv("ODMD_BENCH_ONEDNN", "0")
-    assert model_module.use_onednn(True) is False
-    monkeypatch.setenv("ODMD_BENCH_ONEDNN", "1")
-    available = model_module.onednn_available()
-    assert model_module.use_onednn(True) is available and model_module.use_onednn(False) is available
+    assert record["cpu_kernels"] == "plain"
+    model = DBox(generator=torch.Generator().manual_seed(5))
+    x = torch.from_numpy(make_inputs(_examples(50, 6), "rel").x)
+    with torch.no_grad():
+        unset = model(x)
+    for setting in ("auto", "0", "1"):
+        monkeypatch.setenv("ODMD_BENCH_ONEDNN", setting)
+        with torch.no_grad():
+            assert torch.equal(model(x), unset), setting
+        assert model_module.cpu_kernels() == "plain"
+    assert read_by_model == []
     monkeypatch.setenv("ODMD_BENCH_ONEDNN", "fast")
     with pytest.raises(UsageError, match="ODMD_BENCH_ONEDNN='fast'"):
-        model_module.use_onednn(True)
+        model(x)
+    with pytest.raises(UsageError, match="ODMD_BENCH_ONEDNN='fast'"):
+        model_module.cpu_kernels()
 
 
 def test_an_input_that_needs_a_gradient_gets_it() -> None:

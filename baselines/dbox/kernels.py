@@ -24,15 +24,13 @@ An opt-in path through oneDNN's matmul (``torch.ops.mkldnn._linear_pointwise``, 
 torch operator, with ``ODMD_BENCH_ONEDNN=1``) was dropped (issue 44); its gain and the
 loss measured when dropping it are in ``docs/speed.md``. The setting is still read so
 that a recorded command keeps its meaning: every value it took (``auto``, ``1``, ``0``)
-now runs plain products, as ``1`` did on a torch build without oneDNN, and any other
-value is refused as before.
+runs these products, as ``1`` did on a torch build without oneDNN, and any other value
+is refused as before (:func:`check_setting`).
 """
 
 from __future__ import annotations
 
-import contextlib
 import os
-from collections.abc import Iterator
 from typing import Any
 
 import torch
@@ -46,56 +44,29 @@ _K = _ONE + 1  # 264: rows read by each gate group
 _CT = _K  # rows of c_t
 _Q = _CT + HIDDEN  # 392
 
-#: Values of ``ODMD_BENCH_ONEDNN`` (all run plain products; others are refused).
+#: Values of ``ODMD_BENCH_ONEDNN`` (all run the same plain products; others are refused).
 KERNEL_SETTINGS = ("auto", "1", "0")
-_forced: str | None = None  # set by kernels()
 
 
-def onednn_available() -> bool:
-    """Whether DBox can run its products on oneDNN: no longer (the private-operator path was dropped)."""
-    return False
+def check_setting() -> None:
+    """Refuse an unknown ``ODMD_BENCH_ONEDNN``: a value a recorded command never had.
 
-
-def use_onednn(train: bool) -> bool:
-    """Whether float32 CPU products run on oneDNN: never; an unknown setting is refused.
-
-    ``ODMD_BENCH_ONEDNN`` unset, ``auto``, ``0`` or ``1``: plain products, for training
-    and inference alike (``1`` asked for oneDNN where it was available). Nothing here
-    depends on a timing or on the machine's load. ``train`` is kept for callers that ask
-    per use.
+    Unset, ``auto``, ``0`` and ``1`` all run plain torch products, for training and
+    inference alike (``1`` once asked for oneDNN's kernel, now dropped). Nothing here
+    depends on a timing or on the machine's load.
 
     Raises:
         UsageError: ``ODMD_BENCH_ONEDNN`` has another value.
     """
-    del train  # the same rule for training and inference
-    setting = _forced or os.environ.get("ODMD_BENCH_ONEDNN", "auto") or "auto"
+    setting = os.environ.get("ODMD_BENCH_ONEDNN", "auto") or "auto"
     if setting not in KERNEL_SETTINGS:
         raise UsageError(f"ODMD_BENCH_ONEDNN={setting!r}: expected one of {', '.join(KERNEL_SETTINGS)}")
-    return setting == "1" and onednn_available()
 
 
 def cpu_kernels() -> str:
-    """The kernel of the float32 CPU products, for a training record: ``plain`` (see :func:`use_onednn`)."""
-    return "onednn" if use_onednn(True) else "plain"
-
-
-@contextlib.contextmanager
-def kernels(setting: str) -> Iterator[None]:
-    """Run the block with ``ODMD_BENCH_ONEDNN`` set to ``setting`` (for tests)."""
-    global _forced
-    if setting not in KERNEL_SETTINGS:
-        raise UsageError(f"unknown kernel setting {setting!r}; expected one of {', '.join(KERNEL_SETTINGS)}")
-    before, _forced = _forced, setting
-    try:
-        yield
-    finally:
-        _forced = before
-
-
-def _check_setting(x: torch.Tensor) -> None:
-    """Refuse an unknown ``ODMD_BENCH_ONEDNN`` where it once chose the kernel (float32 on a CPU)."""
-    if x.device.type == "cpu" and x.dtype == torch.float32:
-        use_onednn(True)
+    """The kernel of the float32 CPU products, for a training record: always ``plain`` (see :func:`check_setting`)."""
+    check_setting()
+    return "plain"
 
 
 def _linear(
@@ -104,15 +75,11 @@ def _linear(
     bias: torch.Tensor | None = None,
     add: torch.Tensor | None = None,
     act: str = "none",
-    fast: bool = False,
 ) -> torch.Tensor:
     """``act(x @ w.T + bias + add)``: one product with its epilogue.
 
     x (M, K), w (N, K), bias (N,), add (M, N); ``act`` is ``none``, ``relu`` or ``sigmoid``.
-    ``fast`` asked for oneDNN's kernel, which is gone: it must be False.
     """
-    if fast:
-        raise UsageError("DBox's oneDNN kernel was dropped: products run on plain torch products only")
     out = x @ w.t() if add is None else torch.addmm(add, x, w.t())
     if bias is not None:
         out = out + bias
@@ -145,7 +112,8 @@ class Packed:
 
 def forward_pass(x: torch.Tensor, pk: Packed, keep: bool) -> tuple[torch.Tensor, dict[str, Any]]:
     """The network's output (B,) for ``x`` (B, n_obs, 7) and, if ``keep``, what :func:`backward_pass` needs."""
-    _check_setting(x)
+    if x.device.type == "cpu" and x.dtype == torch.float32:
+        check_setting()  # where the setting once chose the kernel
     b, n, nf = x.shape
     if n < 1:
         raise DataError("DBox needs at least one observation")
