@@ -133,8 +133,8 @@ def test_every_field_that_reaches_a_page_is_shown_escaped(hostile_site: Path) ->
 
 
 def test_the_uncertainty_page_shows_every_text_escaped() -> None:
-    """The uncertainty page (its HTML written in :func:`site_page`) with the payload in every text it shows."""
-    from odmd_bench.leaderboard.uncertainty import site_page
+    """The uncertainty page (its template rendered by :func:`uncertainty_body`) with the payload in every text it shows."""
+    from odmd_bench.leaderboard.site.pages import uncertainty_body
 
     cell = {"coverage": {"observed": 0.9, "level": 0.9}, "interval_score": {"mean": 1.0}}
     row = {
@@ -145,7 +145,7 @@ def test_the_uncertainty_page_shows_every_text_escaped() -> None:
         "point_depths_of": PAYLOAD,
     }
     board = {"benchmark": PAYLOAD, "split": PAYLOAD, "rows": [row], "without_uncertainty": [PAYLOAD]}
-    source = site_page([board])
+    source = uncertainty_body([board])
     parsed = _Elements()
     parsed.feed(source)
     assert not parsed.tags & FORBIDDEN_TAGS and not parsed.attrs & FORBIDDEN_ATTRS

@@ -22,7 +22,8 @@ from odmd_bench import leaderboard as lb
 from odmd_bench import load_split
 from odmd_bench.errors import ValidationError
 from odmd_bench.evaluation.predictions import write_predictions
-from odmd_bench.leaderboard.uncertainty import UNCERTAINTY, site_page
+from odmd_bench.leaderboard.site.pages import uncertainty_body
+from odmd_bench.leaderboard.uncertainty import UNCERTAINTY
 
 FAST = 200
 CHROMIUM = Path("/usr/bin/chromium")
@@ -127,7 +128,7 @@ def test_the_committed_uncertainty_page_in_a_browser(
     if not boards:
         pytest.fail("the committed entries make no uncertainty board", pytrace=False)
     (tmp_path / "uncertainty.html").write_text(
-        f"<!doctype html><html><body>{site_page(boards)}</body></html>"
+        f"<!doctype html><html><body>{uncertainty_body(boards)}</body></html>"
     )
     problems = [] if CHROMIUM.is_file() else [f"{CHROMIUM} is missing"]
     try:

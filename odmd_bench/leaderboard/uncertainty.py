@@ -25,7 +25,7 @@ level, the interval score and, where the entry gives ``depth_std``, the CRPS.
 from __future__ import annotations
 
 import os
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -231,53 +231,3 @@ def to_json(boards: Sequence[UncertaintyBoard]) -> list[dict[str, Any]]:
             }
         )
     return out
-
-
-def site_page(boards: Sequence[Mapping[str, Any]]) -> str:
-    """The site's ``uncertainty.html`` body from the ``uncertainty`` list of leaderboard.json.
-
-    Every number printed is one of the JSON's (as the other pages' are), escaped.
-    """
-    from html import escape
-
-    def e(x: object) -> str:
-        return escape(str(x), quote=True)
-
-    out = [
-        '<p class="crumb"><a href="index.html">All boards</a></p>',
-        "<h1>Uncertainty: depth with error bars</h1>",
-        '<p class="lead">Entries that give a central interval (and a normal spread) for every depth, ranked by '
-        "the <strong>interval score</strong> (Gneiting and Raftery 2007) in percent of the true depth, lower is "
-        "better: the interval's width plus 2 / (1 - level) times every miss. <strong>Coverage</strong>: the "
-        "share of test examples inside the interval; an honest 90% interval covers about 90%. "
-        "<strong>CRPS</strong> of the stated normal, in percent of depth. Entries without error bars are "
-        "listed under each table, not ranked.</p>",
-    ]
-    for b in boards:
-        rows = b["rows"]
-        sets = list(rows[0]["sets"]) if rows else []
-        head = "".join(f'<th class="num">{e(SET_TITLES.get(s, s))} coverage / IS</th>' for s in sets)
-        lines = []
-        for r in rows:
-            a = r["all"]
-            cells = "".join(
-                f'<td class="num">{100 * r["sets"][s]["coverage"]["observed"]:.1f} / '
-                f"{r['sets'][s]['interval_score']['mean']:.2f}</td>"
-                for s in sets
-            )
-            crps = f"{a['crps_mean']:.2f}" if "crps_mean" in a else "-"
-            lines.append(
-                f"<tr><td>{r['group']}</td><td>{e(r['name'])}</td>"
-                f'<td class="num">{r["sets"][sets[0]]["coverage"]["level"]:g}</td>{cells}'
-                f'<td class="num">{100 * a["coverage"]:.1f}</td><td class="num all">{a["interval_score_mean"]:.2f}</td>'
-                f'<td class="num">{crps}</td><td>{e(r["point_depths_of"] or "-")}</td></tr>'
-            )
-        out.append(
-            f'<h2>{e(b["benchmark"])} {e(b["split"])}</h2>\n<div class="scroll"><table>\n'
-            f'<thead><tr><th>Group</th><th>Method</th><th class="num">Level</th>{head}'
-            '<th class="num">All coverage</th><th class="num">All IS</th><th class="num">All CRPS</th>'
-            "<th>Point depths of</th></tr></thead>\n<tbody>\n" + "\n".join(lines) + "\n</tbody></table></div>"
-        )
-        without = ", ".join(e(x) for x in b["without_uncertainty"]) or "none"
-        out.append(f'<p class="meta">Without error bars (not ranked here): {without}.</p>')
-    return "\n".join(out)

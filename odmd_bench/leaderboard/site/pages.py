@@ -241,6 +241,14 @@ def _markup(html: str) -> Any:
     return Markup(html)
 
 
+def uncertainty_body(boards: Sequence[Mapping[str, Any]]) -> str:
+    """The body of the site's ``uncertainty.html`` from the ``uncertainty`` list of leaderboard.json.
+
+    Every number printed is one of the JSON's, as the other pages' are; every text is escaped.
+    """
+    return render("uncertainty_body.html", boards=boards)
+
+
 def _speed(site: SiteData, figures: bool, files: dict[str, bytes]) -> dict[str, Any]:
     """The speed section: the entries recording a speed, those not, and the figure drawn."""
     from odmd_bench.leaderboard.site.figures import SpeedPoint
@@ -281,11 +289,8 @@ def render_site(
     files = {"assets/site.css": _asset("site.css"), "assets/site.js": _asset("site.js")}
     files.update(download_files(site, extra_downloads))
     if site.data.get("uncertainty"):
-        from odmd_bench.leaderboard.uncertainty import site_page
-
-        body = _markup(site_page(site.data["uncertainty"]))
         files["uncertainty.html"] = _page(
-            "uncertainty.html", "Uncertainty: ODMD leaderboard", "", digest, body=body
+            "uncertainty.html", "Uncertainty: ODMD leaderboard", "", digest, boards=site.data["uncertainty"]
         )
     methods: dict[str, list[tuple[SiteRow, SiteBoard]]] = {}
     for b in site.boards:
