@@ -244,7 +244,9 @@ def _markup(html: str) -> Any:
 def uncertainty_body(boards: Sequence[Mapping[str, Any]]) -> str:
     """The body of the site's ``uncertainty.html`` from the ``uncertainty`` list of leaderboard.json.
 
-    Every number printed is one of the JSON's, as the other pages' are; every text is escaped.
+    Every number printed is one of the JSON's (coverage in percent) and every text is
+    escaped. Unlike the other pages' numbers, these carry no ``data-json`` path, so the
+    test that reads every page's numbers back against the JSON does not reach them.
     """
     return render("uncertainty_body.html", boards=boards)
 
