@@ -14,6 +14,7 @@ changes data copies it first.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import shutil
@@ -147,9 +148,87 @@ DboxScores = Callable[..., dict[str, float]]
 
 
 @pytest.fixture(scope="session")
-def dbox_scores() -> DboxScores:
-    """``dbox_scores(data_dir, out, benchmark, split, *weights)``: ``baseline dbox`` + ``evaluate``."""
-    return _baseline_dbox_scores
+def dbox_scores(tmp_path_factory: pytest.TempPathFactory) -> DboxScores:
+    """``dbox_scores(data_dir, out, benchmark, split, *weights)``: ``baseline dbox`` + ``evaluate``.
+
+    The network's depths are those of the run (:func:`dbox_depths_shared`): the tests that
+    use this compare shipped or released weights with the numbers recorded for them.
+    """
+
+    def scores(*args: Any) -> dict[str, float]:
+        with dbox_depths_shared(tmp_path_factory):
+            return _baseline_dbox_scores(*args)
+
+    return scores
+
+
+@contextlib.contextmanager
+def dbox_depths_shared(tmp_path_factory: pytest.TempPathFactory) -> Iterator[None]:
+    """While it is open, DBox's depths for one network and one input are computed once per run.
+
+    The tests that re-run the committed entries' commands (tests/test_leaderboard_commands.py)
+    and those that check the numbers recorded for shipped or released weights run the same
+    networks on the same sets (odmd-paper and odmd-v1 share theirs; a per-set selection runs
+    the overall weights on some sets): ``predict_depth`` is a function of the network's
+    parameters, its inputs (``make_inputs``), the device, the chunk, the thread count, the
+    kernel setting and the torch version, so its depths are kept under the SHA-256 of all
+    of them, in a folder of the run's (:func:`made_once`), and a call met again gets them
+    from there, bit for bit (``.npy``). The first call with each content runs the package's
+    code. Only for tests that compare one computation with a recorded number: a test that
+    compares two ways of computing the same depths, or changes a kernel, never opens it.
+    Without torch it does nothing (the tests that need DBox skip).
+    """
+    import importlib.util
+
+    if importlib.util.find_spec("torch") is None:
+        yield
+        return
+    import hashlib
+
+    import numpy as np
+    import torch
+    from odmd_bench_baselines.dbox import formulations
+
+    real = formulations.predict_depth
+    if getattr(real, "shared_by_the_run", False):  # opened already (a test of a fixture that opens it)
+        yield
+        return
+
+    def shared(model: Any, examples: Any, formulation: str, device: Any, chunk: int = 4096) -> Any:
+        inputs = formulations.make_inputs(examples, formulation)  # refuses what the real call refuses
+        digest = hashlib.sha256()
+
+        def add(part: Any) -> None:
+            data = part if isinstance(part, bytes) else repr(part).encode()
+            digest.update(len(data).to_bytes(8, "little") + data)
+
+        for part in (type(model).__qualname__, formulation, str(torch.device(device)), chunk):
+            add(part)
+        add((torch.get_num_threads(), os.environ.get("ODMD_BENCH_ONEDNN"), torch.__version__))
+        arrays = [(n, t.detach().cpu().contiguous().numpy()) for n, t in model.state_dict().items()]
+        arrays += [("x", inputs.x), ("scale", np.asarray(inputs.scale))]
+        for name, a in arrays:
+            a = np.ascontiguousarray(a)
+            add((name, a.dtype.str, a.shape))
+            add(a.tobytes())
+
+        def compute(folder: Path) -> None:
+            np.save(folder / "depths.npy", real(model, examples, formulation, device, chunk))
+
+        made = made_once(tmp_path_factory, f"dbox-depths-{digest.hexdigest()}", compute)
+        return np.load(made / "depths.npy")
+
+    shared.shared_by_the_run = True  # type: ignore[attr-defined]
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(formulations, "predict_depth", shared)
+        yield
+
+
+@pytest.fixture
+def dbox_depths_made_once(tmp_path_factory: pytest.TempPathFactory) -> Iterator[None]:
+    """:func:`dbox_depths_shared` for the length of a test."""
+    with dbox_depths_shared(tmp_path_factory):
+        yield
 
 
 def recorded_plot(root: Path) -> None:

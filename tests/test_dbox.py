@@ -637,6 +637,7 @@ def _odms_means(data_dir: Path, split: str, config: str, selection: str) -> dict
     }
 
 
+@pytest.mark.usefixtures("dbox_depths_made_once")
 def test_shipped_p_z_weights_give_the_odms_numbers_docs_dbox_states(
     paper_data_dir: Path, tmp_path: Path, dbox_scores: Callable[..., dict[str, float]]
 ) -> None:
@@ -653,6 +654,7 @@ def test_shipped_p_z_weights_give_the_odms_numbers_docs_dbox_states(
     assert all(abs(per_set[k] - stated[k]) < 0.0051 for k in stated), per_set
 
 
+@pytest.mark.usefixtures("dbox_depths_made_once")
 @pytest.mark.parametrize(
     ("config", "overall", "per_set"),
     [
@@ -678,6 +680,7 @@ def test_shipped_ns_z_and_abs_z_weights_give_the_val_numbers_docs_dbox_states(
     assert all(abs(got["per-set"][k] - per_set[k]) < 0.0051 for k in per_set), got["per-set"]
 
 
+@pytest.mark.usefixtures("dbox_depths_made_once")
 @pytest.mark.parametrize(
     ("config", "stated", "paper_all"),
     [
@@ -696,6 +699,7 @@ def test_shipped_per_set_z_weights_meet_the_papers_table_2_row_on_test(
     assert got["all"] <= paper_all, got
 
 
+@pytest.mark.usefixtures("dbox_depths_made_once")
 def test_p_z_per_set_misses_the_papers_robot_and_driving_means_in_the_tail_only(paper_data_dir: Path) -> None:
     """docs/dbox.md's comparison with the paper's Detailed ODMS Results (supplementary).
 
@@ -728,6 +732,7 @@ def test_p_z_per_set_misses_the_papers_robot_and_driving_means_in_the_tail_only(
             assert abs(np.sort(err)[-10:].sum() / err.sum() - 0.124) < 0.001  # the ten largest: 12 %
 
 
+@pytest.mark.usefixtures("dbox_depths_made_once")
 def test_the_p_z_robot_val_tail_is_made_of_sequences_that_start_with_wrong_boxes(
     paper_data_dir: Path,
 ) -> None:
@@ -1028,3 +1033,43 @@ def test_a_record_naming_other_bytes_is_refused(tmp_path: Path, monkeypatch: pyt
     (tmp_path / "mine.json").write_text(json.dumps({**doc, "same_weights_as": "dbox_ns-z.pt"}))
     with pytest.raises(DataError, match="DBox weights not found"):
         dbox.verify_weights(tmp_path / "mine.pt")
+
+
+def test_shared_depths_are_the_computed_ones_and_each_content_is_computed_once(
+    tmp_path_factory: pytest.TempPathFactory, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``dbox_depths_shared`` (tests/conftest.py) gives what ``predict_depth`` gives, bit for bit.
+
+    Each network, input, formulation and chunk is computed once; met again, it is read back
+    from the run's folder; another input is computed; what the real call refuses is refused.
+    """
+    from conftest import dbox_depths_shared
+    from odmd_bench_baselines.dbox import formulations
+
+    ex = _examples(40, 271828)
+    nets = [DBox(generator=torch.Generator().manual_seed(s)) for s in (271, 828)]
+    cpu = torch.device("cpu")
+    cases = [(net, form, chunk) for net in nets for form in ("rel", "abs") for chunk in (4096, 7)]
+    want = [predict_depth(net, ex, form, cpu, chunk).tobytes() for net, form, chunk in cases]
+    assert len(set(want)) == len(cases)
+    real, calls = formulations.predict_depth, []
+
+    def counted(*args: object, **kwargs: object) -> np.ndarray:
+        calls.append(args)
+        return real(*args, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(formulations, "predict_depth", counted)
+    with dbox_depths_shared(tmp_path_factory):
+        for _ in range(2):
+            got = [formulations.predict_depth(net, ex, form, cpu, chunk) for net, form, chunk in cases]
+            assert all(g.dtype == np.float64 for g in got) and [g.tobytes() for g in got] == want
+        assert len(calls) == len(cases)
+        again = formulations.predict_depth(nets[0], _examples(40, 271829), "rel", cpu)
+        assert len(calls) == len(cases) + 1 and again.tobytes() != want[0]
+        hand = _hand_example()
+        still = Examples(
+            boxes=hand.boxes, detected=hand.detected, camera=np.zeros_like(hand.camera), depth=hand.depth
+        )
+        with pytest.raises(DataError, match="camera motion"):
+            formulations.predict_depth(nets[0], still, "rel", cpu)
+    assert formulations.predict_depth is counted

@@ -302,6 +302,7 @@ def test_training_keeps_the_best_model_overall_and_per_set(tmp_path: Path) -> No
         assert got == pytest.approx(best[name], rel=1e-5)
 
 
+@pytest.mark.usefixtures("dbox_depths_made_once")
 def test_every_shipped_checkpoint_scores_the_val_numbers_its_record_states(paper_data_dir: Path) -> None:
     """Each z-axis checkpoint reproduces its recorded val numbers.
 

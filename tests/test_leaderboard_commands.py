@@ -28,6 +28,11 @@ RELEASE_PLACEHOLDER = "ODMD/"
 #: the entries of this repository's methods (their ``code`` is a path under ``baselines/``)
 OWN_ENTRIES = [f for f in discover(BOARD) if read_entry(f).meta.code.startswith("baselines/")]
 
+#: DBox's depths computed once per run for the same network and input (tests/conftest.py,
+#: ``dbox_depths_shared``): the entries of odmd-paper and odmd-v1 share sets, and other
+#: test files check the same shipped weights on the same sets against their recorded numbers
+pytestmark = pytest.mark.usefixtures("dbox_depths_made_once")
+
 
 def _argv(command: str, release: Path, out: Path, data_dir: Path) -> list[str]:
     """The command as arguments of ``odmd-bench``: output to ``out``, data from ``data_dir``.

@@ -63,6 +63,7 @@ def test_calibration_reads_val_only(v1_data_dir: Path, monkeypatch: pytest.Monke
     assert calibration.sizes["all"] == sum(v for k, v in calibration.sizes.items() if k != "all") > 0
 
 
+@pytest.mark.usefixtures("dbox_depths_made_once")
 @pytest.mark.parametrize("name", ["robust", "box-ls", "dbox"])
 def test_committed_90_percent_intervals_cover_85_to_95_percent_of_every_test_set(
     name: str, v1_data_dir: Path, tmp_path: Path
