@@ -172,8 +172,8 @@ def dbox_depths_shared(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Non
     the overall weights on some sets): ``predict_depth`` is a function of the network's
     parameters, its inputs (``make_inputs``), the device, the chunk, the thread count, the
     kernel setting and the torch version, so its depths are kept under the SHA-256 of all
-    of them, in a folder of the run's (:func:`made_once`), and a call met again gets them
-    from there, bit for bit (``.npy``). The first call with each content runs the package's
+    of them (``content_sha256``, as the sets' files are), in a folder of the run's
+    (:func:`made_once`), and a call met again gets them from there, bit for bit (``.npy``). The first call with each content runs the package's
     code. Only for tests that compare one computation with a recorded number: a test that
     compares two ways of computing the same depths, or changes a kernel, never opens it.
     Without torch it does nothing (the tests that need DBox skip).
@@ -183,11 +183,11 @@ def dbox_depths_shared(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Non
     if importlib.util.find_spec("torch") is None:
         yield
         return
-    import hashlib
-
     import numpy as np
     import torch
     from odmd_bench_baselines.dbox import formulations
+
+    from odmd_bench.data.hashing import content_sha256
 
     real = formulations.predict_depth
     if getattr(real, "shared_by_the_run", False):  # opened already (a test of a fixture that opens it)
@@ -196,26 +196,17 @@ def dbox_depths_shared(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Non
 
     def shared(model: Any, examples: Any, formulation: str, device: Any, chunk: int = 4096) -> Any:
         inputs = formulations.make_inputs(examples, formulation)  # refuses what the real call refuses
-        digest = hashlib.sha256()
-
-        def add(part: Any) -> None:
-            data = part if isinstance(part, bytes) else repr(part).encode()
-            digest.update(len(data).to_bytes(8, "little") + data)
-
-        for part in (type(model).__qualname__, formulation, str(torch.device(device)), chunk):
-            add(part)
-        add((torch.get_num_threads(), os.environ.get("ODMD_BENCH_ONEDNN"), torch.__version__))
-        arrays = [(n, t.detach().cpu().contiguous().numpy()) for n, t in model.state_dict().items()]
-        arrays += [("x", inputs.x), ("scale", np.asarray(inputs.scale))]
-        for name, a in arrays:
-            a = np.ascontiguousarray(a)
-            add((name, a.dtype.str, a.shape))
-            add(a.tobytes())
+        call = (type(model).__qualname__, formulation, str(torch.device(device)), chunk)
+        call += (torch.get_num_threads(), os.environ.get("ODMD_BENCH_ONEDNN"), torch.__version__)
+        arrays = {f"parameter {n}": t.detach().cpu().numpy() for n, t in model.state_dict().items()}
+        arrays.update(
+            {"input x": inputs.x, "input scale": np.asarray(inputs.scale), "call": np.array(repr(call))}
+        )
 
         def compute(folder: Path) -> None:
             np.save(folder / "depths.npy", real(model, examples, formulation, device, chunk))
 
-        made = made_once(tmp_path_factory, f"dbox-depths-{digest.hexdigest()}", compute)
+        made = made_once(tmp_path_factory, f"dbox-depths-{content_sha256(arrays)}", compute)
         return np.load(made / "depths.npy")
 
     shared.shared_by_the_run = True  # type: ignore[attr-defined]

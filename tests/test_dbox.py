@@ -1041,7 +1041,8 @@ def test_shared_depths_are_the_computed_ones_and_each_content_is_computed_once(
     """``dbox_depths_shared`` (tests/conftest.py) gives what ``predict_depth`` gives, bit for bit.
 
     Each network, input, formulation and chunk is computed once; met again, it is read back
-    from the run's folder; another input is computed; what the real call refuses is refused.
+    from the run's folder; another input is computed, one with the same scale (the same
+    camera, other boxes) too; what the real call refuses is refused.
     """
     from conftest import dbox_depths_shared
     from odmd_bench_baselines.dbox import formulations
@@ -1066,6 +1067,9 @@ def test_shared_depths_are_the_computed_ones_and_each_content_is_computed_once(
         assert len(calls) == len(cases)
         again = formulations.predict_depth(nets[0], _examples(40, 271829), "rel", cpu)
         assert len(calls) == len(cases) + 1 and again.tobytes() != want[0]
+        moved = Examples(boxes=ex.boxes * 1.01, detected=ex.detected, camera=ex.camera, depth=ex.depth)
+        got = formulations.predict_depth(nets[0], moved, "rel", cpu)
+        assert len(calls) == len(cases) + 2 and got.tobytes() == real(nets[0], moved, "rel", cpu).tobytes()
         hand = _hand_example()
         still = Examples(
             boxes=hand.boxes, detected=hand.detected, camera=np.zeros_like(hand.camera), depth=hand.depth
